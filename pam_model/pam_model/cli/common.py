@@ -1,0 +1,52 @@
+"""Helpers shared by the pam-* command-line tools."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..parameters import ParameterError
+from ..valve_map import ValveMapError
+
+
+def run_cli(main_body, argv=None) -> int:
+    """Run a tool's body; user errors (bad files, values) print one line and exit 2."""
+    try:
+        return main_body(argv) or 0
+    except (ParameterError, ValveMapError, ValueError, OSError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+def add_model_arguments(parser: argparse.ArgumentParser) -> None:
+    """--params, --mismatch, --friction, --force, --locked, --kappa."""
+    from ..physics import FORCE_MODELS, FRICTION_LAWS
+    parser.add_argument('--params', default='default', metavar='SET|FILE',
+                        help="Table II set: 'default' (corrected), 'printed', or a YAML file "
+                             "(default: %(default)s)")
+    parser.add_argument('--mismatch', default='', metavar='NAME|FILE',
+                        help="plant mismatch scenario applied to --params: 'mild' or a YAML file; "
+                             "its sensor model is used too (default: none)")
+    parser.add_argument('--kappa', default='default', metavar='FILE',
+                        help='valve map table CSV (voltage_V,alpha) (default: shipped table)')
+    parser.add_argument('--friction', default='proposed', choices=FRICTION_LAWS,
+                        help='friction law (Table III) (default: %(default)s)')
+    parser.add_argument('--force', default='proposed', choices=FORCE_MODELS,
+                        help='contraction force model (default: %(default)s)')
+    parser.add_argument('--locked', action='store_true',
+                        help='lock the joint at its initial angle (torque experiments)')
+
+
+def build_model(args):
+    """(PamModel, MismatchScenario) from the arguments of add_model_arguments."""
+    from ..mismatch import NOMINAL, load_scenario
+    from ..model import PamModel
+    from ..parameters import load_parameters
+    from ..valve_map import load_valve_map
+    params = load_parameters(args.params)
+    scenario = load_scenario(args.mismatch) if args.mismatch else NOMINAL
+    model = PamModel(params=scenario.apply(params), valve_map=load_valve_map(args.kappa),
+                     friction=args.friction, force=args.force, locked=args.locked)
+    return model, scenario

@@ -1,0 +1,75 @@
+"""Plant mismatch scenarios: a plant parameter set that differs from the nominal one by factors and
+offsets, plus the plant's pressure sensor model, read from YAML (see data/mismatch_mild.yaml).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+from .parameters import (ParameterError, Parameters, read_yaml, check_number, data_path,
+                         field_name, validate_parameters)
+from .sensor import PressureSensor
+
+BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml'}
+
+
+@dataclass(frozen=True)
+class MismatchScenario:
+    """factors and offsets by YAML key ('mu_s', 'A1' for both valves, 'pam1.p_w2' for one muscle)."""
+
+    name: str
+    factors: Mapping[str, float]
+    offsets: Mapping[str, float]
+    sensor: PressureSensor
+
+    def apply(self, nominal: Parameters) -> Parameters:
+        """The plant set: nominal value * factor + offset for every key named."""
+        changes = {}
+        for key, factor in self.factors.items():
+            for name in field_name(key):
+                changes[name] = getattr(nominal, name) * factor
+        for key, offset in self.offsets.items():
+            for name in field_name(key):
+                changes[name] = changes.get(name, getattr(nominal, name)) + offset
+        return validate_parameters(nominal.replace(**changes), f'mismatch scenario {self.name!r}')
+
+
+def scenario_from_dict(data: Mapping, source: str) -> MismatchScenario:
+    """Validate the YAML layout of a scenario; errors name the key and the source."""
+    known = {'name', 'factors', 'offsets', 'sensor'}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ParameterError(f'{source}: unknown key {unknown[0]!r} (known: {", ".join(sorted(known))})')
+    tables = {}
+    for section in ('factors', 'offsets'):
+        table = data.get(section) or {}
+        if not isinstance(table, Mapping):
+            raise ParameterError(f'{source}: {section} must be a mapping')
+        for key, value in table.items():
+            try:
+                field_name(str(key))
+            except KeyError:
+                raise ParameterError(f'{source}: unknown parameter key {section}.{key!r}') from None
+            value = check_number(f'{section}.{key}', value, source)
+            if not math.isfinite(value):
+                raise ParameterError(f'{source}: key {section}.{key!r}: must be finite')
+        tables[section] = {str(k): float(v) for k, v in table.items()}
+    try:
+        sensor = PressureSensor.from_dict(data.get('sensor') or {})
+    except ValueError as exc:
+        raise ParameterError(f'{source}: sensor: {exc}') from exc
+    return MismatchScenario(name=str(data.get('name', Path(source).stem)),
+                            factors=tables['factors'], offsets=tables['offsets'], sensor=sensor)
+
+
+def load_scenario(name_or_path: str | Path) -> MismatchScenario:
+    """A scenario by built-in name ('mild') or YAML path."""
+    path = (data_path(BUILTIN_SCENARIOS[str(name_or_path)])
+            if str(name_or_path) in BUILTIN_SCENARIOS else Path(name_or_path))
+    return scenario_from_dict(read_yaml(path), str(path))
+
+
+NOMINAL = MismatchScenario(name='nominal', factors={}, offsets={}, sensor=PressureSensor())

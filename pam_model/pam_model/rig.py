@@ -1,0 +1,99 @@
+"""SimulatedRig: the plant a simulator node wraps, one sample at a time, with no ROS in it.
+
+It holds the true state, the last valve command (held between samples like real valves), the
+pressure sensor and its random generator, and counts the commands it had to sanitise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import PamModel
+from .physics import U_MAX, U_MIN
+from .sensor import PressureSensor
+
+
+@dataclass(frozen=True)
+class RigSample:
+    """One sample: time (s), true state [rad, rad/s, Pa, Pa], measured pressures (Pa abs), true
+    torque (N m) and muscle forces (N), and the command (V) applied over the step that follows."""
+
+    t: float
+    x: np.ndarray
+    p_measured: np.ndarray
+    torque: float
+    force: tuple[float, float]
+    u: tuple[float, float]
+
+
+def sanitise_command(u: float) -> tuple[float, str]:
+    """A valve voltage made safe: non-finite -> 0 V (vent), else clipped to [0, 10] V.
+
+    Returns the voltage and '' if it was fine, 'non-finite' or 'out of range' otherwise.
+    """
+    if not math.isfinite(u):
+        return U_MIN, 'non-finite'
+    if u < U_MIN or u > U_MAX:
+        return min(max(u, U_MIN), U_MAX), 'out of range'
+    return float(u), ''
+
+
+class SimulatedRig:
+    """The simulated joint: step() advances one sample period h of the model."""
+
+    def __init__(self, model: PamModel, x0, sensor: PressureSensor | None = None, seed: int = 0,
+                 u0=(U_MIN, U_MIN)):
+        x0 = np.asarray(x0, dtype=float)
+        if x0.shape != (4,) or not np.all(np.isfinite(x0)):
+            raise ValueError(f'initial state must be 4 finite numbers [rad, rad/s, Pa, Pa], '
+                             f'got {list(np.ravel(x0))}')
+        self.model = model
+        self.sensor = sensor or PressureSensor()
+        self._rng = np.random.default_rng(seed)
+        self.x = x0.copy()
+        if model.locked:
+            self.x[1] = 0.0
+        self.k = 0
+        self.non_finite_commands = 0
+        self.out_of_range_commands = 0
+        self.u = (U_MIN, U_MIN)
+        self.set_command(*u0)
+
+    @property
+    def t(self) -> float:
+        """Simulated time of the current sample (s)."""
+        return self.k * self.model.h
+
+    @property
+    def bad_commands(self) -> int:
+        return self.non_finite_commands + self.out_of_range_commands
+
+    def set_command(self, u1: float, u2: float) -> bool:
+        """Hold (u1, u2) (V) from now on, sanitised; returns False if it had to be changed."""
+        safe = []
+        ok = True
+        for u in (u1, u2):
+            value, problem = sanitise_command(u)
+            if problem == 'non-finite':
+                self.non_finite_commands += 1
+            elif problem:
+                self.out_of_range_commands += 1
+            ok = ok and not problem
+            safe.append(value)
+        self.u = (safe[0], safe[1])
+        return ok
+
+    def sample(self) -> RigSample:
+        """What the sensors read now (draws sensor noise)."""
+        F1, F2, tau = self.model.outputs(self.x)
+        P_meas = self.sensor.measure(self.x[2:], self._rng)
+        return RigSample(t=self.t, x=self.x.copy(), p_measured=P_meas, torque=float(tau),
+                         force=(float(F1), float(F2)), u=self.u)
+
+    def step(self) -> None:
+        """Advance one period h with the held command."""
+        self.x, _, _ = self.model.step(self.x, self.u)
+        self.k += 1

@@ -1,0 +1,60 @@
+"""Pressure sensor model: additive white Gaussian noise, then an ADC's quantisation and range."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PressureSensor:
+    """noise_std (Pa) of white noise; an ADC of `bits` bits over [range_min, range_max] (Pa abs).
+
+    bits = 0 means no quantisation (the reading is only clipped to the range).
+    """
+
+    noise_std: float = 0.0
+    bits: int = 0
+    range_min: float = 0.0
+    range_max: float = 1.0e6
+
+    def __post_init__(self):
+        if not (math.isfinite(self.noise_std) and self.noise_std >= 0.0):
+            raise ValueError(f'pressure noise std must be >= 0 Pa, got {self.noise_std!r}')
+        if not (isinstance(self.bits, int) and 0 <= self.bits <= 32):
+            raise ValueError(f'quantisation bits must be an integer in 0..32, got {self.bits!r}')
+        if not (math.isfinite(self.range_min) and math.isfinite(self.range_max)
+                and self.range_max > self.range_min):
+            raise ValueError(f'sensor range must be finite with max > min, got '
+                             f'[{self.range_min!r}, {self.range_max!r}]')
+
+    @property
+    def resolution(self) -> float:
+        """One ADC count (Pa), or 0 without quantisation."""
+        if self.bits == 0:
+            return 0.0
+        return (self.range_max - self.range_min) / (2 ** self.bits - 1)
+
+    def measure(self, P, rng: np.random.Generator) -> np.ndarray:
+        """Readings (Pa abs) of true pressures P (any shape)."""
+        P = np.asarray(P, dtype=float)
+        reading = P + self.noise_std * rng.standard_normal(P.shape) if self.noise_std else P.copy()
+        reading = np.clip(reading, self.range_min, self.range_max)
+        if self.bits:
+            q = self.resolution
+            reading = self.range_min + np.round((reading - self.range_min) / q) * q
+        return reading
+
+    @classmethod
+    def from_dict(cls, data: dict) -> 'PressureSensor':
+        """From the `sensor` section of a mismatch scenario YAML."""
+        known = {'pressure_noise_std', 'quantisation_bits', 'range_min', 'range_max'}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f'unknown sensor key {unknown[0]!r} (known: {", ".join(sorted(known))})')
+        return cls(noise_std=float(data.get('pressure_noise_std', 0.0)),
+                   bits=int(data.get('quantisation_bits', 0)),
+                   range_min=float(data.get('range_min', 0.0)),
+                   range_max=float(data.get('range_max', 1.0e6)))
