@@ -1,0 +1,222 @@
+"""The sensor-less UKF of MODEL.md section 5 over the pam_model hybrid model.
+
+State x = [psi, psi_dot, P1, P2] (rad, rad/s, Pa abs, Pa abs); measurement y = [P1, P2] (Pa abs);
+input u(k-1) = the valve voltages (V) held over the step just ended. One step:
+
+1. Julier sigma points (n = 4, kappa = 0) of (x_hat, P); each advanced by the pam_model RK4 step
+   (friction held per sigma point) with u(k-1);
+2. prior x_hat-, P- = unscented transform + Q; P- symmetrised;
+3. sigma points redrawn from (x_hat-, P-) (as filterpy 2.x does), observed through g(x) = [P1, P2];
+4. K = P_xy P_yy^-1, posterior; P symmetrised. A non-finite or out-of-range measurement skips
+   step 4 (counted), so does an innovation whose NIS exceeds the optional gate;
+5. outputs at the estimate: F1, F2 by eq. (6), tau = r cos(psi) (F1 - F2), its variance through
+   the posterior sigma points, and the subsystem index sigma.
+A Cholesky factorisation that fails falls back to an eigenvalue clip (counted). Locked joint: the
+angle is held at the lock angle with a tiny variance, psi_dot = 0.
+The whole step is one compiled numba kernel (see the README for why).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from pam_model.model import PamModel
+from pam_model.physics import (friction_torque, joint_torque, muscle_forces, rk4_step,
+                               subsystem_index, valve_opening)
+
+from .unscented import (julier_sigma_points, julier_weights, measurement_update, symmetrise,
+                        unscented_transform)
+
+N_STATE = 4
+KAPPA = 0.0
+LOCKED_VARIANCE = 1e-12      # rad^2 and (rad/s)^2 kept on psi, psi_dot of a locked joint
+
+
+@njit(cache=True)
+def propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked):
+    """Each sigma point (rows of sigmas) advanced one RK4 step with the openings alpha."""
+    out = np.empty_like(sigmas)
+    for i in range(sigmas.shape[0]):
+        psi, psi_dot, P1, P2, _, _ = rk4_step(sigmas[i, 0], sigmas[i, 1], sigmas[i, 2],
+                                              sigmas[i, 3], alpha1, alpha2, h, p, friction_law,
+                                              force_model, locked)
+        out[i, 0] = psi
+        out[i, 1] = psi_dot
+        out[i, 2] = P1
+        out[i, 3] = P2
+    return out
+
+
+@njit(cache=True)
+def hold_locked(x, P, lock_angle):
+    """A locked joint: psi = lock_angle, psi_dot = 0, their covariance rows reduced to a tiny
+    diagonal (the torque meter holds the joint)."""
+    x = x.copy()
+    P = P.copy()
+    x[0] = lock_angle
+    x[1] = 0.0
+    for i in range(2):
+        for j in range(N_STATE):
+            P[i, j] = 0.0
+            P[j, i] = 0.0
+        P[i, i] = LOCKED_VARIANCE
+    return x, P
+
+
+@njit(cache=True)
+def ukf_step(x, P, u_prev, y, Q, R, h, p, kappa_u, kappa_alpha, friction_law, force_model,
+             locked, lock_angle, nis_gate, y_min, y_max):
+    """One predict + update. Returns (x, P, nis, measurement_valid, accepted, repairs, F1, F2,
+    tau, tau_variance, sigma). nis is 0 when the measurement was not valid."""
+    W = julier_weights(N_STATE, KAPPA)
+    alpha1 = valve_opening(u_prev[0], kappa_u, kappa_alpha)
+    alpha2 = valve_opening(u_prev[1], kappa_u, kappa_alpha)
+    sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
+    sigmas_f = propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked)
+    x_prior, P_prior = unscented_transform(sigmas_f, W, Q)
+    P_prior = symmetrise(P_prior)
+    if locked:
+        x_prior, P_prior = hold_locked(x_prior, P_prior, lock_angle)
+    sigmas_p, rep2 = julier_sigma_points(x_prior, P_prior, KAPPA)
+    valid = (np.isfinite(y[0]) and np.isfinite(y[1]) and y_min <= y[0] <= y_max
+             and y_min <= y[1] <= y_max)
+    nis = 0.0
+    accepted = False
+    x_post, P_post = x_prior, P_prior
+    if valid:
+        Y = sigmas_p[:, 2:4].copy()
+        x_post, P_post, nis, accepted = measurement_update(x_prior, P_prior, sigmas_p, Y, W, R,
+                                                           y, nis_gate)
+        if not np.isfinite(nis):
+            nis = 0.0
+    if locked:
+        x_post, P_post = hold_locked(x_post, P_post, lock_angle)
+    # outputs at the estimate, torque variance through the posterior sigma points
+    F1, F2 = muscle_forces(x_post[0], x_post[2], x_post[3], p, force_model)
+    tau = joint_torque(x_post[0], F1, F2, p)
+    sigmas_o, rep3 = julier_sigma_points(x_post, P_post, KAPPA)
+    taus = np.empty(sigmas_o.shape[0])
+    for i in range(sigmas_o.shape[0]):
+        f1, f2 = muscle_forces(sigmas_o[i, 0], sigmas_o[i, 2], sigmas_o[i, 3], p, force_model)
+        taus[i] = joint_torque(sigmas_o[i, 0], f1, f2, p)
+    tau_mean = W @ taus
+    tau_variance = W @ ((taus - tau_mean) ** 2)
+    if locked:
+        sliding = False
+    else:
+        _, sliding = friction_torque(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
+                                     friction_law, force_model)
+    sigma = subsystem_index(sliding, x_post[2], x_post[3], p)
+    repairs = int(rep1) + int(rep2) + int(rep3)
+    return (x_post, P_post, nis, valid, accepted, repairs, F1, F2, tau, tau_variance, sigma)
+
+
+class UkfTuning(NamedTuple):
+    """Diagonals of Q (process), R (measurement) and P(0), in the state's SI units squared."""
+
+    Q: tuple
+    R: tuple
+    P0: tuple
+
+    def validate(self) -> 'UkfTuning':
+        for name, diag, size in (('Q', self.Q, 4), ('R', self.R, 2), ('P0', self.P0, 4)):
+            values = np.asarray(diag, dtype=float)
+            if values.shape != (size,):
+                raise ValueError(f'UKF {name} needs {size} diagonal entries, got {len(values)}')
+            if not np.all(np.isfinite(values)) or np.any(values < 0.0):
+                raise ValueError(f'UKF {name} entries must be finite and >= 0, got {list(diag)}')
+            if name != 'Q' and np.any(values <= 0.0):
+                raise ValueError(f'UKF {name} entries must be > 0, got {list(diag)}')
+        return self
+
+
+#: The paper's tuning: P(0) = Q = diag(1e-5, 1e-4, 1e6, 1e6), R = diag(1e8, 1e8).
+PAPER_TUNING = UkfTuning(Q=(1e-5, 1e-4, 1e6, 1e6), R=(1e8, 1e8), P0=(1e-5, 1e-4, 1e6, 1e6))
+#: Default tuning, chosen on the simulated rig with the 'mild' plant mismatch (README).
+DEFAULT_TUNING = UkfTuning(Q=(1e-9, 1e-6, 1e4, 1e4), R=(1e8, 1e8), P0=(1e-5, 1e-4, 1e6, 1e6))
+TUNINGS = {'default': DEFAULT_TUNING, 'paper': PAPER_TUNING}
+
+
+class UkfOutput(NamedTuple):
+    """One estimate: state (rad, rad/s, Pa, Pa), forces (N), torque (N m) and health."""
+
+    x: np.ndarray
+    P: np.ndarray
+    force1: float
+    force2: float
+    torque: float
+    torque_variance: float
+    subsystem: int
+    nis: float
+    update_skipped: bool
+
+
+@dataclass
+class PamUkf:
+    """The estimator: call step(y, u_prev) once per pressure sample.
+
+    y_range (Pa abs): measurements outside are rejected (sensor fault) and counted; nis_gate > 0
+    rejects innovations with a larger NIS (chi-square with 2 degrees of freedom: 13.8 is 0.1 %).
+    """
+
+    model: PamModel = field(default_factory=PamModel)
+    tuning: UkfTuning = DEFAULT_TUNING
+    x0: tuple = (0.0, 0.0, 4.5e5, 4.5e5)
+    nis_gate: float = 0.0
+    y_range: tuple = (1.0e3, 2.0e6)
+
+    def __post_init__(self):
+        self.tuning = UkfTuning(*self.tuning).validate()
+        self._Q = np.diag(np.asarray(self.tuning.Q, dtype=float))
+        self._R = np.diag(np.asarray(self.tuning.R, dtype=float))
+        if not (math.isfinite(self.nis_gate) and self.nis_gate >= 0.0):
+            raise ValueError(f'nis_gate must be >= 0 (0 = off), got {self.nis_gate!r}')
+        if not (self.y_range[0] < self.y_range[1]):
+            raise ValueError(f'y_range must be (min, max) with min < max, got {self.y_range!r}')
+        self.reset()
+
+    def reset(self, x0=None, P0=None) -> None:
+        """Restart from x0 (4,) and P0 ((4,) diagonal or (4, 4)); defaults: the configured ones."""
+        x = np.array(self.x0 if x0 is None else x0, dtype=float)
+        P = np.asarray(self.tuning.P0 if P0 is None else P0, dtype=float)
+        P = np.diag(P) if P.ndim == 1 else P.copy()
+        if x.shape != (4,) or not np.all(np.isfinite(x)):
+            raise ValueError(f'initial state must be 4 finite numbers, got {x!r}')
+        if P.shape != (4, 4) or not np.all(np.isfinite(P)) or np.any(np.diag(P) <= 0.0):
+            raise ValueError('initial covariance must be finite, 4x4 (or a 4-diagonal), '
+                             'with a positive diagonal')
+        self.x, self.P = x, 0.5 * (P + P.T)
+        self.lock_angle = float(x[0])
+        self.steps = 0
+        self.rejected_samples = 0     # invalid measurements (non-finite, out of range)
+        self.gated_samples = 0        # innovations rejected by the NIS gate
+        self.repairs = 0              # covariance repairs (Cholesky fallback)
+
+    def step(self, y, u_prev) -> UkfOutput:
+        """Predict with u_prev (V, the command held since the last sample), update with y (Pa)."""
+        y = np.asarray(y, dtype=float).reshape(2)
+        u_prev = np.asarray(u_prev, dtype=float).reshape(2)
+        m = self.model
+        (x, P, nis, valid, accepted, repairs, F1, F2, tau, tau_var, sigma) = ukf_step(
+            self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params, m.valve_map.u,
+            m.valve_map.alpha, m.friction_code, m.force_code, m.locked, self.lock_angle,
+            self.nis_gate, self.y_range[0], self.y_range[1])
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            # cannot happen with the model's guards; never hand out NaN if it ever does
+            self.repairs += 1
+            self.reset(self.x, self.tuning.P0)
+            return self.step(y, u_prev)
+        self.x, self.P = x, P
+        self.steps += 1
+        self.repairs += repairs
+        if not valid:
+            self.rejected_samples += 1
+        elif not accepted:
+            self.gated_samples += 1
+        return UkfOutput(x=x, P=P, force1=F1, force2=F2, torque=tau, torque_variance=tau_var,
+                         subsystem=int(sigma), nis=float(nis), update_skipped=not accepted)

@@ -1,0 +1,82 @@
+"""The filter against references: a closed-form Kalman filter on a linear system, and the same
+filter built on filterpy's UnscentedKalmanFilter with JulierSigmaPoints(kappa=0)."""
+
+import numpy as np
+import pytest
+from filterpy.kalman import JulierSigmaPoints, UnscentedKalmanFilter
+
+from pam_estimator.pam_ukf import PAPER_TUNING, DEFAULT_TUNING, PamUkf
+from pam_estimator.unscented import (julier_sigma_points, julier_weights, measurement_update,
+                                     unscented_transform)
+from pam_model.model import PamModel
+from pam_model.profiles import validation_profile
+from pam_model.sensor import PressureSensor
+from pam_model.simulate import simulate
+
+
+def test_linear_case_equals_the_closed_form_kalman_filter():
+    rng = np.random.default_rng(0)
+    n, m = 4, 2
+    A = np.eye(n) + 0.05 * rng.standard_normal((n, n))
+    C = rng.standard_normal((m, n))
+    Q = np.diag([1e-3, 2e-3, 1e-2, 5e-3])
+    R = np.diag([0.1, 0.2])
+    x_ukf = x_kf = np.zeros(n)
+    P_ukf = P_kf = np.eye(n)
+    W = julier_weights(n, 0.0)
+    x_true = rng.standard_normal(n)
+    for _ in range(200):
+        x_true = A @ x_true + rng.multivariate_normal(np.zeros(n), Q)
+        y = C @ x_true + rng.multivariate_normal(np.zeros(m), R)
+        # closed form
+        x_kf, P_kf = A @ x_kf, A @ P_kf @ A.T + Q
+        K = P_kf @ C.T @ np.linalg.inv(C @ P_kf @ C.T + R)
+        x_kf, P_kf = x_kf + K @ (y - C @ x_kf), P_kf - K @ C @ P_kf
+        # unscented pieces
+        sigmas, _ = julier_sigma_points(x_ukf, P_ukf, 0.0)
+        x_prior, P_prior = unscented_transform(sigmas @ A.T, W, Q)
+        sigmas, _ = julier_sigma_points(x_prior, P_prior, 0.0)
+        x_ukf, P_ukf, nis, accepted = measurement_update(x_prior, P_prior, sigmas,
+                                                         sigmas @ C.T, W, R, y, 0.0)
+        assert accepted and nis >= 0.0
+        np.testing.assert_allclose(x_ukf, x_kf, rtol=1e-9, atol=1e-10)
+        np.testing.assert_allclose(P_ukf, P_kf, rtol=1e-9, atol=1e-12)
+
+
+def filterpy_reference(model, tuning, x0):
+    """The same filter on filterpy 2.0 with the scalar model step."""
+    def fx(x, dt, u):
+        return model.step(x, u)[0]
+
+    def hx(x):
+        return x[2:4]
+
+    ukf = UnscentedKalmanFilter(dim_x=4, dim_z=2, dt=model.h, hx=hx, fx=fx,
+                                points=JulierSigmaPoints(4, kappa=0.0))
+    ukf.x = np.array(x0, dtype=float)
+    ukf.P = np.diag(tuning.P0)
+    ukf.Q = np.diag(tuning.Q)
+    ukf.R = np.diag(tuning.R)
+    return ukf
+
+
+@pytest.mark.parametrize('tuning', [PAPER_TUNING, DEFAULT_TUNING], ids=['paper', 'default'])
+def test_agrees_with_filterpy_over_10_s(tuning):
+    """10 s of the validation profile on the mismatched... plant with a noisy sensor."""
+    profile = validation_profile(seed=2, duration=40.0)
+    U = profile.u[10_000:20_000]                        # 10 s of steps: the joint moves
+    x0 = [0.1, 0.0, 4.0e5, 5.0e5]
+    run = simulate(PamModel(), U, x0, sensor=PressureSensor(2000.0, 12), seed=4)
+    model = PamModel()
+    ours = PamUkf(model=model, tuning=tuning, x0=(0.0, 0.0, 4.5e5, 4.5e5))
+    ref = filterpy_reference(model, tuning, ours.x)
+    scale = np.array([1.0, 1.0, 1e5, 1e5])
+    worst = 0.0
+    for k in range(1, len(U)):
+        out = ours.step(run.p_measured[k], U[k - 1])
+        ref.predict(u=U[k - 1])
+        ref.update(run.p_measured[k])
+        worst = max(worst, np.max(np.abs(out.x - ref.x) / scale))
+        assert worst < 1e-9, (k, out.x, ref.x)
+        np.testing.assert_allclose(out.P, ref.P, rtol=1e-6, atol=1e-12 * np.max(np.abs(ref.P)))
+    assert np.ptp(run.x[:, 0]) > 0.05                    # the run did move the joint
