@@ -18,6 +18,7 @@ estimate, and full-range inputs drive the plant itself close to V = 0 near |psi|
 """
 
 import math
+from typing import NamedTuple
 
 from numba import njit
 
@@ -91,43 +92,58 @@ def volume_rate(l, l_dot, p):
 
 # --- valve flow, eq. (5) and the orifice equations -----------------------------------------------
 
-@njit(cache=True)
-def critical_ratio(p):
-    """c* = (2/(k+1))^(k/(k-1)), the choking pressure ratio (about 0.528 for air)."""
-    return (2.0 / (p.k + 1.0)) ** (p.k / (p.k - 1.0))
+class GasConstants(NamedTuple):
+    """Constants of the orifice equations, derived once per step from Table II."""
+
+    c_star: float     # -, critical pressure ratio (2/(k+1))^(k/(k-1)), about 0.528
+    C_ch: float       # sqrt(kg K/J), choked coefficient sqrt(k/R (2/(k+1))^((k+1)/(k-1)))
+    C_un0: float      # sqrt(kg K/J), prefactor of C_un: sqrt(2k/(R(k-1)))
+    inv_k: float      # -, 1/k
+    sqrt_T: float     # sqrt(K)
 
 
 @njit(cache=True)
-def orifice_coefficient(phi, p):
-    """C_ch if phi <= c*, else C_un(phi) (sqrt(kg K/J)); phi = downstream/upstream in [0, 1]."""
+def gas_constants(p):
+    """GasConstants of the parameter set p."""
     k = p.k
-    if phi <= critical_ratio(p):
-        return math.sqrt(k / p.R * (2.0 / (k + 1.0)) ** ((k + 1.0) / (k - 1.0)))
-    phi = min(phi, 1.0)
-    return (math.sqrt(2.0 * k / (p.R * (k - 1.0))) * phi ** (1.0 / k)
-            * math.sqrt(max(1.0 - phi ** ((k - 1.0) / k), 0.0)))
+    return GasConstants(c_star=(2.0 / (k + 1.0)) ** (k / (k - 1.0)),
+                        C_ch=math.sqrt(k / p.R * (2.0 / (k + 1.0)) ** ((k + 1.0) / (k - 1.0))),
+                        C_un0=math.sqrt(2.0 * k / (p.R * (k - 1.0))),
+                        inv_k=1.0 / k, sqrt_T=math.sqrt(p.T))
 
 
 @njit(cache=True)
-def inflow_per_area(P, p):
+def orifice_coefficient(phi, g):
+    """C_ch if phi <= c*, else C_un(phi) = C_un0 phi^(1/k) sqrt(1 - phi^((k-1)/k)) (sqrt(kg K/J));
+    phi = downstream/upstream pressure ratio, clipped to <= 1. Uses phi^((k-1)/k) = phi/phi^(1/k).
+    """
+    if phi <= g.c_star:
+        return g.C_ch
+    phi = min(phi, 1.0)
+    root = phi ** g.inv_k
+    return g.C_un0 * root * math.sqrt(max(1.0 - phi / root, 0.0))
+
+
+@njit(cache=True)
+def inflow_per_area(P, p, g):
     """m_in tilde (kg/(s m^2)): flow from the tank into a muscle at pressure P (Pa)."""
     if P >= p.P_tank:
         return 0.0
-    return p.P_tank / math.sqrt(p.T) * orifice_coefficient(P / p.P_tank, p)
+    return p.P_tank / g.sqrt_T * orifice_coefficient(P / p.P_tank, g)
 
 
 @njit(cache=True)
-def outflow_per_area(P, p):
+def outflow_per_area(P, p, g):
     """m_out tilde (kg/(s m^2)): flow from a muscle at pressure P (Pa) to the atmosphere."""
     if P <= p.P_out:
         return 0.0
-    return P / math.sqrt(p.T) * orifice_coefficient(p.P_out / P, p)
+    return P / g.sqrt_T * orifice_coefficient(p.P_out / P, g)
 
 
 @njit(cache=True)
-def mass_flow(P, alpha, A1, A2, p):
+def mass_flow(P, alpha, A1, A2, p, g):
     """m = A_0 (alpha m_in - (1 - alpha) m_out) (kg/s); A_0 = A1 when charging, A2 otherwise."""
-    m_tilde = alpha * inflow_per_area(P, p) - (1.0 - alpha) * outflow_per_area(P, p)
+    m_tilde = alpha * inflow_per_area(P, p, g) - (1.0 - alpha) * outflow_per_area(P, p, g)
     if m_tilde > 0.0:
         return A1 * m_tilde
     return A2 * m_tilde
@@ -142,7 +158,7 @@ def pressure_rate(P, V, V_dot, m, p):
 @njit(cache=True)
 def pressure_region(P, p):
     """0: P < P_out/c* (inflow choked, outflow not); 1: both choked; 2: P > c* P_tank."""
-    c_star = critical_ratio(p)
+    c_star = gas_constants(p).c_star
     if P < p.P_out / c_star:
         return 0
     if P <= c_star * p.P_tank:
@@ -232,10 +248,10 @@ def friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model):
 # --- state equation (11a), RK4 -------------------------------------------------------------------------
 
 @njit(cache=True)
-def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, force_model, locked):
+def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, g, force_model, locked):
     """f(x) of (11a) with the friction torque T_f held: (psi_dot, psi_ddot, P1_dot, P2_dot).
 
-    Units: rad/s, rad/s^2, Pa/s, Pa/s. With locked=True the joint is held (psi_dot = 0).
+    Units: rad/s, rad/s^2, Pa/s, Pa/s; g = gas_constants(p). With locked=True the joint is held.
     """
     l1, l2 = muscle_lengths(psi, p)
     V1 = muscle_volume(l1, p)
@@ -248,8 +264,8 @@ def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, force_model, 
         F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
         psi_ddot = (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
     l_dot = p.r * math.cos(psi) * omega          # l2_dot = +l_dot, l1_dot = -l_dot
-    m1 = mass_flow(P1, alpha1, p.A1_1, p.A2_1, p)
-    m2 = mass_flow(P2, alpha2, p.A1_2, p.A2_2, p)
+    m1 = mass_flow(P1, alpha1, p.A1_1, p.A2_1, p, g)
+    m2 = mass_flow(P2, alpha2, p.A1_2, p.A2_2, p, g)
     P1_dot = pressure_rate(P1, V1, volume_rate(l1, -l_dot, p), m1, p)
     P2_dot = pressure_rate(P2, V2, volume_rate(l2, l_dot, p), m2, p)
     return omega, psi_ddot, P1_dot, P2_dot
@@ -275,7 +291,7 @@ def rk4_step(psi, psi_dot, P1, P2, alpha1, alpha2, h, p, friction_law, force_mod
     else:
         T_f, sliding = friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model)
     sigma = subsystem_index(sliding, P1, P2, p)
-    a = (alpha1, alpha2, T_f, p, force_model, locked)
+    a = (alpha1, alpha2, T_f, p, gas_constants(p), force_model, locked)
     k1 = state_derivative(psi, psi_dot, P1, P2, *a)
     k2 = state_derivative(psi + 0.5 * h * k1[0], psi_dot + 0.5 * h * k1[1],
                           P1 + 0.5 * h * k1[2], P2 + 0.5 * h * k1[3], *a)

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .parameters import Parameters, data_path
-from .physics import U_MAX, U_MIN, inflow_per_area, outflow_per_area, valve_opening
+from .physics import U_MAX, U_MIN, gas_constants, inflow_per_area, outflow_per_area
 
 #: The shipped static curve of the simulated rig (step (b) input) and the kappa table made from it.
 DEFAULT_STATIC_CURVE = 'static_voltage_pressure.csv'
@@ -100,7 +100,8 @@ def load_valve_map(name_or_path: str | Path = 'default') -> ValveMap:
 
 def net_flow_per_area(P: float, alpha: float, p: Parameters) -> float:
     """alpha m_in(P) - (1 - alpha) m_out(P) (kg/(s m^2)) at pressure P (Pa abs)."""
-    return alpha * inflow_per_area(P, p) - (1.0 - alpha) * outflow_per_area(P, p)
+    g = gas_constants(p)
+    return alpha * inflow_per_area(P, p, g) - (1.0 - alpha) * outflow_per_area(P, p, g)
 
 
 def steady_pressure(alpha: float, p: Parameters) -> float:
@@ -119,14 +120,15 @@ def opening_for_steady_pressure(P_bar, p: Parameters):
     """
     P_bar = np.atleast_1d(np.asarray(P_bar, dtype=float))
     alpha = np.empty_like(P_bar)
+    g = gas_constants(p)
     for j, P in enumerate(P_bar):
         if P <= p.P_out:
             alpha[j] = 0.0
         elif P >= p.P_tank:
             alpha[j] = 1.0
         else:
-            m_out = outflow_per_area(P, p)
-            alpha[j] = m_out / (inflow_per_area(P, p) + m_out)
+            m_out = outflow_per_area(P, p, g)
+            alpha[j] = m_out / (inflow_per_area(P, p, g) + m_out)
     return alpha
 
 
@@ -151,8 +153,3 @@ def calibrate_valve_map(u_measured, P_measured, p: Parameters) -> ValveMap:
 def static_pressure_curve(alphas, p: Parameters) -> np.ndarray:
     """Step (a) over a grid of openings: P_bar(alpha) (Pa abs) for each alpha."""
     return np.array([steady_pressure(float(a), p) for a in np.asarray(alphas, dtype=float)])
-
-
-def kappa_alpha(u: float, valve_map: ValveMap) -> float:
-    """Scalar kappa through the compiled kernel (same result as ValveMap.__call__)."""
-    return valve_opening(u, valve_map.u, valve_map.alpha)
