@@ -1,0 +1,218 @@
+"""Parameter tables shared by the PAM nodes: declaration with descriptors, checks, --help text.
+
+A node lists its parameters as ParamSpec rows. The pure part (no ROS: checks, usage text) is
+tested without a ROS graph; declare_parameters() turns the rows into declared ROS parameters
+with descriptors (description, unit, range, read-only) and returns their values.
+Errors name the parameter: ConfigError("parameter 'joint_mode': unknown value ...").
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+U_MIN, U_MAX = 0.0, 10.0        # V, valve voltage range (pam_model.physics)
+
+
+class ConfigError(ValueError):
+    """A node parameter has a bad value; the message names the parameter."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One ROS parameter of a node."""
+
+    name: str
+    default: Any
+    type_name: str          # 'string', 'double', 'integer', 'bool', 'double[]'
+    unit: str
+    description: str
+    choices: tuple = ()
+    range: tuple | None = None
+    read_only: bool = True
+
+    def default_text(self) -> str:
+        if isinstance(self.default, str):
+            return repr(self.default)
+        if isinstance(self.default, bool):
+            return 'true' if self.default else 'false'
+        if isinstance(self.default, list):
+            return '[' + ', '.join(repr(v) for v in self.default) + ']'
+        return repr(self.default)
+
+
+def defaults(specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """The default value of every parameter (lists copied)."""
+    return {s.name: (list(s.default) if isinstance(s.default, list) else s.default) for s in specs}
+
+
+def merge_overrides(specs: Sequence[ParamSpec], overrides: Mapping[str, Any] | None) -> dict:
+    """Defaults updated with overrides; an unknown name is a ConfigError."""
+    values = defaults(specs)
+    unknown = sorted(set(overrides or {}) - set(values))
+    if unknown:
+        raise ConfigError(f'unknown parameter {unknown[0]!r}')
+    values.update(overrides or {})
+    for spec in specs:
+        value = values[spec.name]
+        if spec.type_name == 'string' and not isinstance(value, str):
+            fail(spec.name, f'expected a string, got {value!r}')
+        if spec.type_name == 'bool' and not isinstance(value, bool):
+            fail(spec.name, f'expected true or false, got {value!r}')
+    return values
+
+
+def fail(name: str, message: str):
+    raise ConfigError(f"parameter '{name}': {message}")
+
+
+def check_choice(spec: ParamSpec, value) -> str:
+    if value not in spec.choices:
+        fail(spec.name, f'unknown value {value!r}; choose one of: {", ".join(spec.choices)}')
+    return value
+
+
+def check_array(name: str, value, length: int, meaning: str) -> list[float]:
+    """A list of `length` finite floats."""
+    try:
+        array = [float(v) for v in value]
+    except (TypeError, ValueError):
+        fail(name, f'expected {length} numbers {meaning}, got {value!r}')
+    if len(array) != length:
+        fail(name, f'expected {length} numbers {meaning}, got {len(array)}: {array}')
+    if not all(math.isfinite(v) for v in array):
+        fail(name, f'values must be finite, got {array}')
+    return array
+
+
+def check_number(spec: ParamSpec, value, integer: bool = False):
+    """A finite number inside spec.range (an int if integer)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        fail(spec.name, f'expected a{"n integer" if integer else " number"}, got {value!r}')
+    if integer and not float(value).is_integer():
+        fail(spec.name, f'expected an integer, got {value!r}')
+    if not math.isfinite(value):
+        fail(spec.name, f'must be finite, got {value!r}')
+    if spec.range is not None:
+        low, high = spec.range
+        if not low <= value <= high:
+            fail(spec.name, f'{value!r} is out of range [{low}, {high}]')
+    return int(value) if integer else float(value)
+
+
+def check_command(name: str, value) -> list[float]:
+    """[u1, u2] inside the valve range."""
+    command = check_array(name, value, 2, '[u1 V, u2 V]')
+    if not all(U_MIN <= u <= U_MAX for u in command):
+        fail(name, f'voltages must be in [{U_MIN}, {U_MAX}] V, got {command}')
+    return command
+
+
+def check_state(name: str, value) -> list[float]:
+    """[psi, psi_dot, P1, P2] with positive absolute pressures."""
+    state = check_array(name, value, 4, '[psi rad, psi_dot rad/s, P1 Pa, P2 Pa]')
+    if state[2] <= 0.0 or state[3] <= 0.0:
+        fail(name, f'pressures are absolute and must be > 0 Pa, got {state[2:]}')
+    return state
+
+
+def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
+    """Apply the generic checks: choices, numbers in range. Returns values (updated in place)."""
+    for spec in specs:
+        if spec.choices:
+            check_choice(spec, values[spec.name])
+        elif spec.type_name in ('double', 'integer'):
+            values[spec.name] = check_number(spec, values[spec.name],
+                                             integer=spec.type_name == 'integer')
+    return values
+
+
+def wants_help(argv: Sequence[str]) -> bool:
+    """True if -h/--help appears among the program's own arguments (before any --ros-args)."""
+    for arg in list(argv)[1:]:
+        if arg == '--ros-args':
+            return False
+        if arg in ('-h', '--help'):
+            return True
+    return False
+
+
+def usage_text(prog: str, summary: Sequence[str], specs: Sequence[ParamSpec],
+               examples: Sequence[str] = ()) -> str:
+    """--help text: usage line, the node's summary lines, every parameter, examples."""
+    lines = [f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE] '
+             '[-r __ns:=/NAMESPACE]]', '', *summary, '', 'Parameters (name (type[, unit]) = default):']
+    for spec in specs:
+        kind = spec.type_name + (f', {spec.unit}' if spec.unit else '')
+        extra = ''
+        if spec.choices:
+            extra = '  {' + ', '.join(spec.choices) + '}'
+        elif spec.range:
+            extra = f'  [{spec.range[0]} .. {spec.range[1]}]'
+        lines.append(f'  {spec.name} ({kind}) = {spec.default_text()}{extra}')
+        lines.extend(textwrap.wrap(spec.description, width=96, initial_indent=' ' * 6,
+                                   subsequent_indent=' ' * 6))
+    if examples:
+        lines += ['', 'Examples:'] + [f'  {e}' for e in examples]
+    return '\n'.join(lines) + '\n'
+
+
+# --- ROS side ----------------------------------------------------------------------------------
+
+def descriptor(spec: ParamSpec):
+    """The rcl_interfaces ParameterDescriptor of a spec."""
+    from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                    ParameterType)
+    types = {'string': ParameterType.PARAMETER_STRING,
+             'double': ParameterType.PARAMETER_DOUBLE,
+             'integer': ParameterType.PARAMETER_INTEGER,
+             'bool': ParameterType.PARAMETER_BOOL,
+             'double[]': ParameterType.PARAMETER_DOUBLE_ARRAY}
+    description = spec.description + (f' Unit: {spec.unit}.' if spec.unit else '')
+    result = ParameterDescriptor(name=spec.name, type=types[spec.type_name],
+                                 description=description, read_only=spec.read_only)
+    if spec.choices:
+        result.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    if spec.range is not None and spec.type_name == 'double':
+        result.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.range[0]), to_value=float(spec.range[1]), step=0.0)]
+    elif spec.range is not None and spec.type_name == 'integer':
+        result.integer_range = [IntegerRange(
+            from_value=int(spec.range[0]), to_value=int(spec.range[1]), step=1)]
+    return result
+
+
+def _type_hint(spec: ParamSpec, value) -> str:
+    if spec.type_name == 'double' and isinstance(value, int) and not isinstance(value, bool):
+        return f' (write {value}.0)'
+    if spec.type_name == 'double[]':
+        return ' (write every element with a decimal point, e.g. [0.0, 0.0, 450000.0, 450000.0])'
+    return ''
+
+
+def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """Declare every spec on the node with its descriptor and return the values.
+
+    A value of the wrong type (an override from the command line or a params file) becomes a
+    ConfigError naming the parameter, with a hint (e.g. 'write 1000.0').
+    """
+    import rclpy.exceptions
+    from rclpy.parameter import Parameter
+    values = {}
+    for spec in specs:
+        # an empty list has no element type: declare such a parameter by its type instead
+        default = (Parameter.Type.DOUBLE_ARRAY if spec.type_name == 'double[]' and not spec.default
+                   else spec.default)
+        try:
+            value = node.declare_parameter(spec.name, default, descriptor(spec)).value
+            values[spec.name] = [] if value is None and spec.type_name == 'double[]' else value
+        except (rclpy.exceptions.InvalidParameterTypeException,
+                rclpy.exceptions.InvalidParameterValueException) as exc:
+            override = node.get_parameter_overrides().get(spec.name) if hasattr(
+                node, 'get_parameter_overrides') else None
+            value = override.value if override is not None else None
+            raise ConfigError(f"parameter '{spec.name}': expected {spec.type_name}, got "
+                              f'{value!r}{_type_hint(spec, value)}') from exc
+    return values

@@ -1,0 +1,115 @@
+"""EstimatorCore: what ukf_node does with each message, with no ROS in it.
+
+* a valve command (V) is held as u(k-1) for the next pressure sample (non-finite voltages read as
+  0 V, out-of-range ones are clipped: the valves do the same);
+* a pressure sample (Pa abs, stamp in ns) advances the filter one step and yields an estimate;
+  a sample whose stamp equals the last one is a duplicate (ignored, counted); a stamp older than
+  the last one means time went backwards (a bag looping, a simulator restarted): the filter is
+  reset to its initial state and covariance, then the sample is processed;
+* statistics for the diagnostics: input rate, step time, NIS, covariance trace, rejections.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from pam_model.rig import sanitise_command
+
+from .pam_ukf import PamUkf, UkfOutput
+
+RATE_WINDOW = 1000          # samples over which the input rate and step times are measured
+
+
+@dataclass
+class CoreEvent:
+    """What happened to one pressure sample: 'estimate', 'duplicate' or 'reset'."""
+
+    kind: str
+    output: UkfOutput | None = None
+    message: str = ''
+
+
+class EstimatorCore:
+    """Feeds a PamUkf from timestamped messages and keeps the numbers the diagnostics report."""
+
+    def __init__(self, ukf: PamUkf, initial_command=(5.5, 5.5)):
+        self.ukf = ukf
+        self.initial_command = tuple(float(u) for u in initial_command)
+        self.u_prev = np.array(self.initial_command)
+        self.last_stamp_ns: int | None = None
+        self.samples = 0
+        self.duplicates = 0
+        self.time_resets = 0
+        self.commands = 0
+        self.bad_commands = 0
+        self.last_output: UkfOutput | None = None
+        self._arrivals = deque(maxlen=RATE_WINDOW)      # monotonic receive times (s)
+        self._step_times = deque(maxlen=RATE_WINDOW)    # s
+        self.last_command_time: float | None = None
+
+    def on_command(self, u1: float, u2: float) -> bool:
+        """Hold a new valve command; returns False if it had to be sanitised."""
+        (a, pa), (b, pb) = sanitise_command(u1), sanitise_command(u2)
+        self.u_prev = np.array([a, b])
+        self.commands += 1
+        self.last_command_time = time.monotonic()
+        if pa or pb:
+            self.bad_commands += 1
+            return False
+        return True
+
+    def reset(self, x0=None, P0=None) -> None:
+        """Restart the filter (from its configured initial state unless given)."""
+        self.ukf.reset(x0, P0)
+        self.last_stamp_ns = None
+        self.last_output = None
+
+    def on_pressures(self, p1: float, p2: float, stamp_ns: int) -> CoreEvent:
+        """One pressure sample: the filter step, or why there was none."""
+        now = time.monotonic()
+        message = ''
+        kind = 'estimate'
+        if self.last_stamp_ns is not None:
+            if stamp_ns == self.last_stamp_ns:
+                self.duplicates += 1
+                return CoreEvent('duplicate', message='duplicate stamp: sample ignored')
+            if stamp_ns < self.last_stamp_ns:
+                self.time_resets += 1
+                back = (self.last_stamp_ns - stamp_ns) * 1e-9
+                self.reset()
+                kind = 'reset'
+                message = (f'time went backwards by {back:.3f} s (bag looping or rig restarted): '
+                           'filter reset to its initial state')
+        self._arrivals.append(now)
+        start = time.perf_counter()
+        output = self.ukf.step((p1, p2), self.u_prev)
+        self._step_times.append(time.perf_counter() - start)
+        self.last_stamp_ns = stamp_ns
+        self.samples += 1
+        self.last_output = output
+        return CoreEvent(kind, output, message)
+
+    # --- numbers for /diagnostics ------------------------------------------------------------
+
+    def input_rate(self) -> float:
+        """Pressure samples per second over the last RATE_WINDOW arrivals (Hz)."""
+        if len(self._arrivals) < 2:
+            return 0.0
+        span = self._arrivals[-1] - self._arrivals[0]
+        return (len(self._arrivals) - 1) / span if span > 0 else 0.0
+
+    def seconds_since_input(self) -> float:
+        """Time since the last pressure sample arrived (s); inf before the first."""
+        return time.monotonic() - self._arrivals[-1] if self._arrivals else math.inf
+
+    def step_time_stats(self) -> tuple[float, float]:
+        """(median, max) of the filter step time over the window (s)."""
+        if not self._step_times:
+            return 0.0, 0.0
+        times = np.fromiter(self._step_times, dtype=float)
+        return float(np.median(times)), float(times.max())

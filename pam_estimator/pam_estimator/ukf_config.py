@@ -1,0 +1,137 @@
+"""Parameters of ukf_node: the table, their checks and the --help text (no ROS in here)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_array,
+                                    check_command, check_state, fail, merge_overrides,
+                                    usage_text as _usage_text)
+
+FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
+FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')
+JOINT_MODES = ('free', 'locked')
+TUNING_PRESETS = ('default', 'paper')
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec('model_parameters', 'default', 'string', '',
+              "Table II parameter set the filter's model assumes: 'default' (corrected), "
+              "'printed' or the path of a Table II YAML file."),
+    ParamSpec('valve_map', 'default', 'string', '',
+              "Valve map kappa(u): 'default' (shipped table) or a voltage_V,alpha CSV path."),
+    ParamSpec('friction_law', 'proposed', 'string', '', "Friction law of the filter's model.",
+              choices=FRICTION_LAWS),
+    ParamSpec('force_model', 'proposed', 'string', '', "Force model of the filter's model.",
+              choices=FORCE_MODELS),
+    ParamSpec('joint_mode', 'free', 'string', '',
+              "'free' joint, or 'locked' at the initial angle (torque experiments).",
+              choices=JOINT_MODES),
+    ParamSpec('tuning', 'default', 'string', '',
+              "Preset of Q, R, P(0): 'default' (tuned on the simulated rig with the 'mild' "
+              "mismatch) or 'paper' (Q = P(0) = diag(1e-5, 1e-4, 1e6, 1e6), R = diag(1e8, 1e8)).",
+              choices=TUNING_PRESETS),
+    ParamSpec('process_noise', [], 'double[]', 'rad^2, (rad/s)^2, Pa^2, Pa^2',
+              'Diagonal of Q over [psi, psi_dot, P1, P2]; empty: from the tuning preset.'),
+    ParamSpec('measurement_noise', [], 'double[]', 'Pa^2, Pa^2',
+              'Diagonal of R over [P1, P2]; empty: from the tuning preset.'),
+    ParamSpec('initial_covariance', [], 'double[]', 'rad^2, (rad/s)^2, Pa^2, Pa^2',
+              'Diagonal of P(0); empty: from the tuning preset.'),
+    ParamSpec('initial_state', [0.0, 0.0, 450000.0, 450000.0], 'double[]', 'rad, rad/s, Pa, Pa',
+              'Initial estimate [psi, psi_dot, P1, P2] (also the state a reset returns to).'),
+    ParamSpec('initial_command', [5.5, 5.5], 'double[]', 'V',
+              'Valve voltages assumed held until the first valve_command arrives.'),
+    ParamSpec('nis_gate', 0.0, 'double', '',
+              'Reject an update whose normalised innovation squared exceeds this (chi-square, '
+              '2 degrees of freedom: 13.8 rejects 0.1 % of good samples); 0: no gate.',
+              range=(0.0, 1.0e9)),
+    ParamSpec('pressure_min', 1000.0, 'double', 'Pa',
+              'Pressure readings below this (absolute) are sensor faults: the update is skipped.',
+              range=(0.0, 1.0e7)),
+    ParamSpec('pressure_max', 2.0e6, 'double', 'Pa',
+              'Pressure readings above this are sensor faults: the update is skipped.',
+              range=(0.0, 1.0e8)),
+    ParamSpec('stale_timeout', 0.1, 'double', 's',
+              'Diagnostics report the input stale (WARN) after this long without pressures.',
+              range=(0.001, 3600.0)),
+    ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published estimates.'),
+)
+
+
+SUMMARY = [
+    'Sensor-less UKF of the antagonistic PAM joint (pam_estimator): joint angle and torque from',
+    "the two muscle pressures (Shin et al. 2021). Default namespace '/pam'. Topics (reliable,",
+    'keep last 100):',
+    '  subscribes  pressures       pam_interfaces/Pressures        P1, P2 (Pa abs), one step each',
+    '  subscribes  valve_command   pam_interfaces/ValveCommand     u1, u2 (V), held as u(k-1)',
+    '  publishes   estimate        pam_interfaces/JointEstimate    per sample, with its stamp',
+    '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray about 1 Hz',
+    'Service ~/reset (std_srvs/Trigger): restart from initial_state and the initial covariance.',
+]
+
+
+def usage_text(prog: str = 'ukf_node') -> str:
+    return _usage_text(prog, SUMMARY, PARAMETERS, examples=[
+        f'{prog} --ros-args -p joint_mode:=locked -p tuning:=paper',
+        f'{prog} --ros-args --params-file <share>/pam_estimator/config/ukf_node.yaml'])
+
+
+@dataclass
+class UkfConfig:
+    """Checked values and the filter built from them."""
+
+    values: dict
+    ukf: Any                   # pam_estimator.pam_ukf.PamUkf
+    summary: list
+
+
+def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
+    """Check the parameters and build the filter; ConfigError names the parameter."""
+    values = check_all(PARAMETERS, merge_overrides(PARAMETERS, overrides))
+    values['initial_state'] = check_state('initial_state', values['initial_state'])
+    values['initial_command'] = check_command('initial_command', values['initial_command'])
+    if values['pressure_min'] >= values['pressure_max']:
+        fail('pressure_max', f"must exceed pressure_min ({values['pressure_min']} Pa)")
+
+    from pam_model.model import PamModel
+    from pam_model.parameters import ParameterError, load_parameters
+    from pam_model.valve_map import load_valve_map
+
+    from .pam_ukf import TUNINGS, PamUkf, UkfTuning
+
+    preset = TUNINGS[values['tuning']]
+    diagonals = {}
+    for name, field, length in (('process_noise', 'Q', 4), ('measurement_noise', 'R', 2),
+                                ('initial_covariance', 'P0', 4)):
+        given = values[name]
+        diagonals[field] = (tuple(check_array(name, given, length, f'(diagonal, {length} values)'))
+                            if len(given) else getattr(preset, field))
+    tuning = UkfTuning(**diagonals)
+    try:
+        tuning.validate()
+    except ValueError as exc:
+        raise ConfigError(f'filter tuning: {exc}') from exc
+    try:
+        params = load_parameters(values['model_parameters'])
+    except (ParameterError, ValueError) as exc:
+        fail('model_parameters', str(exc))
+    try:
+        valve_map = load_valve_map(values['valve_map'])
+    except (ValueError, OSError) as exc:
+        fail('valve_map', str(exc))
+    model = PamModel(params=params, valve_map=valve_map, friction=values['friction_law'],
+                     force=values['force_model'], locked=values['joint_mode'] == 'locked')
+    ukf = PamUkf(model=model, tuning=tuning, x0=tuple(values['initial_state']),
+                 nis_gate=values['nis_gate'],
+                 y_range=(values['pressure_min'], values['pressure_max']))
+    summary = [
+        f"model: parameters {values['model_parameters']!r}, valve map {values['valve_map']!r}, "
+        f"friction {values['friction_law']!r}, force {values['force_model']!r}, joint "
+        f"{values['joint_mode']}",
+        f"tuning {values['tuning']!r}: Q diag {list(tuning.Q)}, R diag {list(tuning.R)}, "
+        f'P(0) diag {list(tuning.P0)}',
+        f"initial state {values['initial_state']}, NIS gate "
+        f"{values['nis_gate'] if values['nis_gate'] > 0 else 'off'}, valid pressures "
+        f"[{values['pressure_min']:g}, {values['pressure_max']:g}] Pa",
+    ]
+    return UkfConfig(values=values, ukf=ukf, summary=summary)

@@ -1,0 +1,186 @@
+"""ukf_node: the sensor-less joint estimator, a thin ROS wrapper around EstimatorCore / PamUkf.
+
+Run `ukf_node --help` for the parameters. Topics resolve under the node namespace ('/pam' unless
+remapped with `--ros-args -r __ns:=/other`):
+
+    pressures      pam_interfaces/Pressures        subscribed: one filter step per sample
+    valve_command  pam_interfaces/ValveCommand     subscribed: held as u(k-1)
+    estimate       pam_interfaces/JointEstimate    published for every sample, with the sample's
+                                                   stamp, covariance and filter health
+    /diagnostics   diagnostic_msgs/DiagnosticArray about 1 Hz: input rate, staleness, NIS,
+                                                   covariance trace, rejected samples, step time
+Service ~/reset (std_srvs/Trigger) restarts the filter from initial_state and P(0).
+QoS: reliable, keep last 100 (a 1 kHz stream across processes loses nothing with that depth).
+The compiled filter kernel is loaded (and compiled on the very first run) before the
+subscriptions are created, so the first samples are not stalled.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
+from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
+
+from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_driver.node_params import ConfigError, declare_parameters, wants_help
+
+from .estimator_core import EstimatorCore
+from .ukf_config import PARAMETERS, build_config, usage_text
+
+NODE_NAME = 'ukf_node'
+DEFAULT_NAMESPACE = '/pam'
+QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                 depth=100)
+LOG_THROTTLE = 1.0   # s
+
+
+class UkfNode(Node):
+    """Subscribes pressures and valve commands, publishes one JointEstimate per sample."""
+
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        config = build_config(declare_parameters(self, PARAMETERS))
+        self.core = EstimatorCore(config.ukf, config.values['initial_command'])
+        self.frame_id = config.values['frame_id']
+        self.stale_timeout = config.values['stale_timeout']
+        for line in config.summary:
+            self.get_logger().info(line)
+        self._warm_up()
+        self.estimate_pub = self.create_publisher(JointEstimate, 'estimate', QOS)
+        self.create_subscription(ValveCommand, 'valve_command', self._on_command, QOS)
+        self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: UKF estimator',
+                                                'pam-ukf', self._report)
+        self._last_log = {}
+        self.get_logger().info(
+            f"estimating: {self.resolve_topic_name('pressures')} + "
+            f"{self.resolve_topic_name('valve_command')} -> "
+            f"{self.resolve_topic_name('estimate')}")
+
+    def _warm_up(self) -> None:
+        """Run the compiled kernel once (loads numba's cache or compiles) on a throw-away copy."""
+        ukf = self.core.ukf
+        x, P = ukf.x.copy(), ukf.P.copy()
+        ukf.step(ukf.x[2:], self.core.u_prev)
+        ukf.reset(x, P)
+
+    def _log_throttled(self, key: str, level: str, text: str) -> None:
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if now - self._last_log.get(key, -math.inf) >= LOG_THROTTLE:
+            self._last_log[key] = now
+            getattr(self.get_logger(), level)(text)
+
+    def _on_command(self, msg: ValveCommand) -> None:
+        if not self.core.on_command(msg.u1, msg.u2):
+            self._log_throttled('command', 'warn',
+                                f'valve command ({msg.u1}, {msg.u2}) V outside [0, 10] or not '
+                                f'finite: used sanitised ({self.core.u_prev[0]:g}, '
+                                f'{self.core.u_prev[1]:g}) V ({self.core.bad_commands} so far)')
+
+    def _on_pressures(self, msg: Pressures) -> None:
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns)
+        if event.kind == 'duplicate':
+            return
+        if event.kind == 'reset':
+            self.get_logger().warn(event.message)
+        out = event.output
+        if out.update_skipped and self.core.ukf.rejected_samples:
+            self._log_throttled('rejected', 'warn',
+                                f'pressure sample ({msg.p1}, {msg.p2}) Pa not usable: update '
+                                f'skipped ({self.core.ukf.rejected_samples} rejected so far)')
+        est = JointEstimate()
+        est.header.stamp = msg.header.stamp
+        est.header.frame_id = self.frame_id
+        est.angle, est.angular_velocity, est.p1, est.p2 = (float(v) for v in out.x)
+        est.torque = float(out.torque)
+        est.force1, est.force2 = float(out.force1), float(out.force2)
+        est.covariance = out.P.ravel().tolist()
+        est.torque_variance = float(out.torque_variance)
+        est.subsystem = out.subsystem
+        est.nis = float(out.nis)
+        est.rejected_samples = self.core.ukf.rejected_samples + self.core.ukf.gated_samples
+        est.update_skipped = bool(out.update_skipped)
+        self.estimate_pub.publish(est)
+
+    def _on_reset(self, request, response):
+        self.core.reset()
+        response.success = True
+        response.message = 'filter reset to initial_state and the initial covariance'
+        self.get_logger().info(response.message)
+        return response
+
+    def _report(self):
+        core, ukf = self.core, self.core.ukf
+        median, worst = core.step_time_stats()
+        age = core.seconds_since_input()
+        out = core.last_output
+        trace = float(np.trace(ukf.P))
+        values = {
+            'input rate (Hz)': core.input_rate(),
+            'time since last pressure sample (s)': age,
+            'samples estimated': core.samples,
+            'duplicate samples ignored': core.duplicates,
+            'resets on time going backwards': core.time_resets,
+            'valve commands received': core.commands,
+            'bad valve commands': core.bad_commands,
+            'rejected samples (invalid)': ukf.rejected_samples,
+            'rejected samples (NIS gate)': ukf.gated_samples,
+            'covariance repairs': ukf.repairs,
+            'last NIS': out.nis if out else 0.0,
+            'covariance trace': trace,
+            'step time median (us)': median * 1e6,
+            'step time max (us)': worst * 1e6,
+            'joint mode': 'locked' if ukf.model.locked else 'free',
+        }
+        if core.samples == 0:
+            return WARN, 'waiting for pressures', values
+        if not math.isfinite(trace):
+            return ERROR, 'covariance not finite', values
+        if age > self.stale_timeout:
+            return WARN, f'input stale: no pressures for {age:.2f} s', values
+        return OK, 'estimating', values
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text())
+        return 0
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = UkfNode()
+        executor = SingleThreadedExecutor()
+        try:
+            from rclpy.experimental import EventsExecutor
+            if not node.get_parameter('use_sim_time').value:
+                executor = EventsExecutor()
+        except ImportError:
+            pass
+        executor.add_node(node)
+        executor.spin()
+    except ConfigError as exc:
+        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
