@@ -23,6 +23,7 @@ setup(
     entry_points={
         'console_scripts': [
             'ukf_node = pam_estimator.ukf_node:main',
+            'pam-evaluate = pam_estimator.cli.evaluate:main',
         ],
     },
 )

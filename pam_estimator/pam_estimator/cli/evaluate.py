@@ -1,0 +1,81 @@
+"""pam-evaluate: offline evaluation of the model alone and the UKF on a recorded run."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pam_model.cli.common import run_cli
+from pam_model.metrics import Metrics
+from pam_model.model import PamModel
+from pam_model.parameters import load_parameters
+from pam_model.simulate import SimulationResult
+from pam_model.valve_map import load_valve_map
+
+from ..evaluation import PAPER_TABLE_III, compare_models, evaluate, format_table, quantity
+from ..pam_ukf import TUNINGS
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='pam-evaluate',
+        description='Offline evaluation (Sec. IV of Shin et al. 2021): runs the model alone (open '
+                    'loop from the valve commands) and the sensor-less UKF (which also sees the '
+                    'pressures) over a recorded run, and prints I, M, Q of the angle (deg, free '
+                    'joint) or torque (N m, locked joint) errors beside the paper\'s values. '
+                    'Input: a run written by pam-simulate (.npz or .csv).')
+    parser.add_argument('runs', nargs='+', metavar='RUN', help='recorded run(s), .npz or .csv')
+    parser.add_argument('--params', default='default', metavar='SET|FILE',
+                        help="parameters the estimator assumes (default: %(default)s)")
+    parser.add_argument('--kappa', default='default', metavar='FILE',
+                        help='valve map table CSV (default: shipped table)')
+    parser.add_argument('--tuning', default='default', choices=sorted(TUNINGS),
+                        help='UKF Q, R, P(0) preset (default: %(default)s)')
+    parser.add_argument('--plots', metavar='DIR',
+                        help='write one PNG per run into DIR (like the paper\'s Figs. 9-10)')
+    parser.add_argument('--compare-models', action='store_true',
+                        help='also run the UKF with every friction law (Table III) and force '
+                             'model and print their I / M / Q')
+    return parser.parse_args(argv)
+
+
+def body(argv=None) -> int:
+    args = parse_args(argv)
+    model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.kappa))
+    tuning = TUNINGS[args.tuning]
+    for path in args.runs:
+        run = SimulationResult.load(path)
+        kind = quantity(run)
+        table, alone, ukf = evaluate(run, model, tuning)
+        print(f'{path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
+              f'{"locked" if run.locked else "free"} joint, tuning {args.tuning!r}')
+        print(format_table(kind, table))
+        beats = all(getattr(table['ukf'], m) < getattr(table['model'], m) for m in 'IMQ')
+        print(f'UKF beats the model alone on I, M and Q: {"yes" if beats else "NO"}')
+        if args.plots:
+            from ..plots import plot_evaluation
+            out = Path(args.plots)
+            out.mkdir(parents=True, exist_ok=True)
+            png = plot_evaluation(run, alone, ukf, out / (Path(path).stem + f'_{kind}.png'),
+                                  title=f'{Path(path).name}: {kind}, model alone vs UKF')
+            print(f'wrote {png}')
+        if args.compare_models:
+            print(f'\nUKF with each model variant ({kind}):')
+            print(f'{"variant":<30}       I        M        Q   | paper Table III (online angle)')
+            for label, m in compare_models(run, model, tuning).items():
+                law = label.split(' ', 1)[1]
+                ref = PAPER_TABLE_III.get(law) if label.startswith('friction') else None
+                ref_text = (f'| {ref.I:.2f} / {ref.M:.2f} / {100 * ref.Q:.2f} %'
+                            if isinstance(ref, Metrics) else '|')
+                print(f'{label:<30} {m.I:8.4f} {m.M:8.4f} {100 * m.Q:7.2f} % {ref_text}')
+        print()
+    return 0
+
+
+def main(argv=None) -> None:
+    sys.exit(run_cli(body, argv))
+
+
+if __name__ == '__main__':
+    main()
