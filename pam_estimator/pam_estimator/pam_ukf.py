@@ -138,7 +138,7 @@ class UkfTuning(NamedTuple):
 #: The paper's tuning: P(0) = Q = diag(1e-5, 1e-4, 1e6, 1e6), R = diag(1e8, 1e8).
 PAPER_TUNING = UkfTuning(Q=(1e-5, 1e-4, 1e6, 1e6), R=(1e8, 1e8), P0=(1e-5, 1e-4, 1e6, 1e6))
 #: Default tuning, chosen on the simulated rig with the 'mild' plant mismatch (README).
-DEFAULT_TUNING = UkfTuning(Q=(1e-9, 1e-6, 1e4, 1e4), R=(1e8, 1e8), P0=(1e-5, 1e-4, 1e6, 1e6))
+DEFAULT_TUNING = UkfTuning(Q=(1e-9, 1e-6, 1e3, 1e3), R=(4e6, 4e6), P0=(1e-5, 1e-4, 1e6, 1e6))
 TUNINGS = {'default': DEFAULT_TUNING, 'paper': PAPER_TUNING}
 
 
