@@ -68,11 +68,18 @@ def hold_locked(x, P, lock_angle):
     return x, P
 
 
+#: Layout of the `info` array ukf_step fills (one float each).
+INFO_FIELDS = ('nis', 'valid', 'accepted', 'repairs', 'force1', 'force2', 'torque',
+               'torque_variance', 'subsystem', 'finite')
+
+
 @njit(cache=True)
-def ukf_step(x, P, u_prev, y, Q, R, h, p, kappa_u, kappa_alpha, friction_law, force_model,
-             locked, lock_angle, nis_gate, y_min, y_max):
-    """One predict + update. Returns (x, P, nis, measurement_valid, accepted, repairs, F1, F2,
-    tau, tau_variance, sigma). nis is 0 when the measurement was not valid."""
+def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_law, force_model,
+             locked, lock_angle, nis_gate, y_min, y_max, info):
+    """One predict + update, in place: x (4,) and P (4, 4) become the posterior and info (10,)
+    receives INFO_FIELDS (nis is 0 when the measurement was not valid). If the posterior were
+    not finite, x and P are left unchanged and info[9] = 0. p_array: Parameters record array."""
+    p = p_array[0]
     W = julier_weights(N_STATE, KAPPA)
     alpha1 = valve_opening(u_prev[0], kappa_u, kappa_alpha)
     alpha2 = valve_opening(u_prev[1], kappa_u, kappa_alpha)
@@ -112,8 +119,21 @@ def ukf_step(x, P, u_prev, y, Q, R, h, p, kappa_u, kappa_alpha, friction_law, fo
         _, sliding = friction_torque(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
                                      friction_law, force_model)
     sigma = subsystem_index(sliding, x_post[2], x_post[3], p)
-    repairs = int(rep1) + int(rep2) + int(rep3)
-    return (x_post, P_post, nis, valid, accepted, repairs, F1, F2, tau, tau_variance, sigma)
+    finite = np.all(np.isfinite(x_post)) and np.all(np.isfinite(P_post)) and np.isfinite(
+        tau) and np.isfinite(tau_variance)
+    if finite:
+        x[:] = x_post
+        P[:, :] = P_post
+    info[0] = nis
+    info[1] = valid
+    info[2] = accepted
+    info[3] = int(rep1) + int(rep2) + int(rep3)
+    info[4] = F1
+    info[5] = F2
+    info[6] = tau
+    info[7] = tau_variance
+    info[8] = sigma
+    info[9] = finite
 
 
 class UkfTuning(NamedTuple):
@@ -191,6 +211,7 @@ class PamUkf:
             raise ValueError('initial covariance must be finite, 4x4 (or a 4-diagonal), '
                              'with a positive diagonal')
         self.x, self.P = x, 0.5 * (P + P.T)
+        self._info = np.zeros(len(INFO_FIELDS))
         self.lock_angle = float(x[0])
         self.steps = 0
         self.rejected_samples = 0     # invalid measurements (non-finite, out of range)
@@ -199,24 +220,28 @@ class PamUkf:
 
     def step(self, y, u_prev) -> UkfOutput:
         """Predict with u_prev (V, the command held since the last sample), update with y (Pa)."""
-        y = np.asarray(y, dtype=float).reshape(2)
-        u_prev = np.asarray(u_prev, dtype=float).reshape(2)
-        m = self.model
-        (x, P, nis, valid, accepted, repairs, F1, F2, tau, tau_var, sigma) = ukf_step(
-            self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params, m.valve_map.u,
-            m.valve_map.alpha, m.friction_code, m.force_code, m.locked, self.lock_angle,
-            self.nis_gate, self.y_range[0], self.y_range[1])
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
-            # cannot happen with the model's guards; never hand out NaN if it ever does
+        y = np.asarray(y, dtype=float)
+        u_prev = np.asarray(u_prev, dtype=float)
+        if y.shape != (2,) or u_prev.shape != (2,):
+            raise ValueError('y needs 2 pressures (Pa) and u_prev 2 voltages (V)')
+        m, info = self.model, self._info
+        ukf_step(self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params_array, m.valve_map.u,
+                 m.valve_map.alpha, m.friction_code, m.force_code, m.locked, self.lock_angle,
+                 self.nis_gate, self.y_range[0], self.y_range[1], info)
+        nis, valid, accepted, repairs, F1, F2, tau, tau_var, sigma, finite = info.tolist()
+        if not finite:
+            # cannot happen with the model's guards; never hand out NaN if it ever does:
+            # keep the state, restart its covariance, and report the update as skipped
             self.repairs += 1
-            self.reset(self.x, self.tuning.P0)
-            return self.step(y, u_prev)
-        self.x, self.P = x, P
+            self.P = np.diag(np.asarray(self.tuning.P0, dtype=float))
+            F1, F2, tau = (float(v) for v in m.outputs(self.x))
+            tau_var, accepted = 0.0, False
         self.steps += 1
-        self.repairs += repairs
+        self.repairs += int(repairs)
         if not valid:
             self.rejected_samples += 1
         elif not accepted:
             self.gated_samples += 1
-        return UkfOutput(x=x, P=P, force1=F1, force2=F2, torque=tau, torque_variance=tau_var,
-                         subsystem=int(sigma), nis=float(nis), update_skipped=not accepted)
+        return UkfOutput(x=self.x.copy(), P=self.P.copy(), force1=F1, force2=F2, torque=tau,
+                         torque_variance=tau_var, subsystem=int(sigma), nis=nis,
+                         update_skipped=not accepted)

@@ -82,12 +82,52 @@ def julier_sigma_points(x, P, kappa):
 
 
 @njit(cache=True)
+def weighted_cross_covariance(A, a_mean, B, b_mean, W):
+    """sum_i W_i (A_i - a_mean)(B_i - b_mean)^T for rows A (k, n), B (k, m): (n, m).
+
+    Plain loops: for 4 x 2 matrices they beat BLAS calls, whose overhead dominates."""
+    n, m = A.shape[1], B.shape[1]
+    C = np.zeros((n, m))
+    for i in range(A.shape[0]):
+        for r in range(n):
+            dr = W[i] * (A[i, r] - a_mean[r])
+            for c in range(m):
+                C[r, c] += dr * (B[i, c] - b_mean[c])
+    return C
+
+
+@njit(cache=True)
+def weighted_mean(A, W):
+    """sum_i W_i A_i over rows A (k, n)."""
+    mean = np.zeros(A.shape[1])
+    for i in range(A.shape[0]):
+        for r in range(A.shape[1]):
+            mean[r] += W[i] * A[i, r]
+    return mean
+
+
+@njit(cache=True)
+def inverse(S):
+    """S^-1; closed form for 1x1 and 2x2 (the PAM filter's P_yy), LAPACK otherwise."""
+    m = S.shape[0]
+    if m == 1:
+        return 1.0 / S
+    if m == 2:
+        det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+        inv = np.empty((2, 2))
+        inv[0, 0] = S[1, 1] / det
+        inv[1, 1] = S[0, 0] / det
+        inv[0, 1] = -S[0, 1] / det
+        inv[1, 0] = -S[1, 0] / det
+        return inv
+    return np.linalg.inv(S)
+
+
+@njit(cache=True)
 def unscented_transform(sigmas, W, noise):
     """(mean, covariance + noise) of weighted points sigmas (2n+1, m)."""
-    mean = W @ sigmas
-    d = sigmas - mean
-    cov = (d.T * W) @ d + noise
-    return mean, cov
+    mean = weighted_mean(sigmas, W)
+    return mean, weighted_cross_covariance(sigmas, mean, sigmas, mean, W) + noise
 
 
 @njit(cache=True)
@@ -98,12 +138,10 @@ def measurement_update(x_prior, P_prior, sigmas, Y, W, R, y, nis_gate):
     innovation squared exceeds it, the update is rejected and the prior is returned.
     """
     y_hat, P_yy = unscented_transform(Y, W, R)
-    d_x = sigmas - x_prior
-    d_y = Y - y_hat
-    P_xy = (d_x.T * W) @ d_y
-    P_yy_inv = np.linalg.inv(P_yy)
+    P_xy = weighted_cross_covariance(sigmas, x_prior, Y, y_hat, W)
+    P_yy_inv = inverse(P_yy)
     innovation = y - y_hat
-    nis = innovation @ P_yy_inv @ innovation
+    nis = innovation @ (P_yy_inv @ innovation)
     if not np.isfinite(nis) or (nis_gate > 0.0 and nis > nis_gate):
         return x_prior, P_prior, nis, False
     K = P_xy @ P_yy_inv

@@ -3,9 +3,8 @@ filter built on filterpy's UnscentedKalmanFilter with JulierSigmaPoints(kappa=0)
 
 import numpy as np
 import pytest
-from filterpy.kalman import JulierSigmaPoints, UnscentedKalmanFilter
-
 from pam_estimator.pam_ukf import PAPER_TUNING, DEFAULT_TUNING, PamUkf
+from pam_estimator.reference import filterpy_ukf
 from pam_estimator.unscented import (julier_sigma_points, julier_weights, measurement_update,
                                      unscented_transform)
 from pam_model.model import PamModel
@@ -43,33 +42,16 @@ def test_linear_case_equals_the_closed_form_kalman_filter():
         np.testing.assert_allclose(P_ukf, P_kf, rtol=1e-9, atol=1e-12)
 
 
-def filterpy_reference(model, tuning, x0):
-    """The same filter on filterpy 2.0 with the scalar model step."""
-    def fx(x, dt, u):
-        return model.step(x, u)[0]
-
-    def hx(x):
-        return x[2:4]
-
-    ukf = UnscentedKalmanFilter(dim_x=4, dim_z=2, dt=model.h, hx=hx, fx=fx,
-                                points=JulierSigmaPoints(4, kappa=0.0))
-    ukf.x = np.array(x0, dtype=float)
-    ukf.P = np.diag(tuning.P0)
-    ukf.Q = np.diag(tuning.Q)
-    ukf.R = np.diag(tuning.R)
-    return ukf
-
-
 @pytest.mark.parametrize('tuning', [PAPER_TUNING, DEFAULT_TUNING], ids=['paper', 'default'])
 def test_agrees_with_filterpy_over_10_s(tuning):
-    """10 s of the validation profile on the mismatched... plant with a noisy sensor."""
+    """10 s of the validation profile (steps: the joint moves) with a noisy 12-bit sensor."""
     profile = validation_profile(seed=2, duration=40.0)
     U = profile.u[10_000:20_000]                        # 10 s of steps: the joint moves
     x0 = [0.1, 0.0, 4.0e5, 5.0e5]
     run = simulate(PamModel(), U, x0, sensor=PressureSensor(2000.0, 12), seed=4)
     model = PamModel()
     ours = PamUkf(model=model, tuning=tuning, x0=(0.0, 0.0, 4.5e5, 4.5e5))
-    ref = filterpy_reference(model, tuning, ours.x)
+    ref = filterpy_ukf(model, tuning, ours.x)
     scale = np.array([1.0, 1.0, 1e5, 1e5])
     worst = 0.0
     for k in range(1, len(U)):

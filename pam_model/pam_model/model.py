@@ -39,6 +39,7 @@ class PamModel:
     h: float = T_S
 
     def __post_init__(self):
+        object.__setattr__(self, 'params_array', self.params.as_record_array())
         law_code(self.friction, FRICTION_LAWS, 'friction law')
         law_code(self.force, FORCE_MODELS, 'force model')
         if not (np.isfinite(self.h) and self.h > 0.0):
@@ -61,12 +62,12 @@ class PamModel:
 
         Returns (x_next (4,), T_f in N m, sigma in 1..18).
         """
-        alpha1 = physics.valve_opening(float(u[0]), self.valve_map.u, self.valve_map.alpha)
-        alpha2 = physics.valve_opening(float(u[1]), self.valve_map.u, self.valve_map.alpha)
-        *x_next, T_f, sigma = physics.rk4_step(float(x[0]), float(x[1]), float(x[2]),
-                                               float(x[3]), alpha1, alpha2, self.h, self.params,
-                                               self.friction_code, self.force_code, self.locked)
-        return np.array(x_next), T_f, sigma
+        x_next = np.empty(4)
+        T_f, sigma = physics.step_array(np.asarray(x, dtype=float), float(u[0]), float(u[1]),
+                                        self.h, self.params_array, self.valve_map.u,
+                                        self.valve_map.alpha, self.friction_code,
+                                        self.force_code, self.locked, x_next)
+        return x_next, T_f, sigma
 
     def step_many(self, X, u):
         """Vectorised path: states X (N, 4), voltages u (N, 2) or (2,) in V.

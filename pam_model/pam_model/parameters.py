@@ -90,6 +90,16 @@ class Parameters(NamedTuple):
         """A copy with some fields changed (field names as in the NamedTuple)."""
         return self._replace(**changes)
 
+    def as_record_array(self):
+        """A 1-element numpy structured array with the same field names.
+
+        Compiled kernels read ``p = p_array[0]`` like the NamedTuple (``p.r``); passing the array
+        from Python costs ~0.3 us instead of ~2.5 us for unboxing 36 tuple fields.
+        """
+        import numpy as np
+        dtype = np.dtype([(name, np.float64) for name in self._fields])
+        return np.array([tuple(self)], dtype=dtype)
+
 
 def field_name(key: str) -> list[str]:
     """Map a YAML key ('k1', 'pam2.p_w2' or a bare muscle key 'A1') to Parameters field names."""

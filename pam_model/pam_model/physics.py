@@ -305,3 +305,16 @@ def rk4_step(psi, psi_dot, P1, P2, alpha1, alpha2, h, p, friction_law, force_mod
             P1 + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
             P2 + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]),
             T_f, sigma)
+
+
+@njit(cache=True)
+def step_array(x, u1, u2, h, p_array, kappa_u, kappa_alpha, friction_law, force_model, locked,
+               x_next):
+    """rk4_step for a state array x (4,) and voltages u1, u2 (V) through kappa; writes x_next (4,)
+    and returns (T_f, sigma). p_array is Parameters.as_record_array() (cheap to pass from Python).
+    """
+    alpha1 = valve_opening(u1, kappa_u, kappa_alpha)
+    alpha2 = valve_opening(u2, kappa_u, kappa_alpha)
+    x_next[0], x_next[1], x_next[2], x_next[3], T_f, sigma = rk4_step(
+        x[0], x[1], x[2], x[3], alpha1, alpha2, h, p_array[0], friction_law, force_model, locked)
+    return T_f, sigma

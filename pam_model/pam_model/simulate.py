@@ -18,8 +18,11 @@ from .sensor import PressureSensor
 
 
 @njit(cache=True)
-def simulate_kernel(x0, U, h, p, kappa_u, kappa_alpha, friction_law, force_model, locked):
-    """States X (N+1, 4), friction T_f (N,) and sigma (N,) over inputs U (N, 2) in V."""
+def simulate_kernel(x0, U, h, p_array, kappa_u, kappa_alpha, friction_law, force_model, locked):
+    """States X (N+1, 4), friction T_f (N,) and sigma (N,) over inputs U (N, 2) in V.
+
+    p_array: Parameters.as_record_array()."""
+    p = p_array[0]
     n = U.shape[0]
     X = np.empty((n + 1, 4))
     T_f = np.empty(n)
@@ -110,8 +113,8 @@ def simulate(model: PamModel, U, x0, sensor: PressureSensor | None = None,
     x0 = np.asarray(x0, dtype=float)
     if x0.shape != (4,) or not np.all(np.isfinite(x0)):
         raise ValueError(f'initial state must be 4 finite numbers, got {x0!r}')
-    p = model.params
-    X, T_f, sigma = simulate_kernel(x0, U, model.h, p, model.valve_map.u, model.valve_map.alpha,
+    X, T_f, sigma = simulate_kernel(x0, U, model.h, model.params_array, model.valve_map.u,
+                                    model.valve_map.alpha,
                                     model.friction_code, model.force_code, model.locked)
     X = X[:-1]
     F1, F2, tau = model.outputs(X)
