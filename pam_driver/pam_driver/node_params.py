@@ -143,7 +143,8 @@ def usage_text(prog: str, summary: Sequence[str], specs: Sequence[ParamSpec],
                examples: Sequence[str] = ()) -> str:
     """--help text: usage line, the node's summary lines, every parameter, examples."""
     lines = [f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE] '
-             '[-r __ns:=/NAMESPACE]]', '', *summary, '', 'Parameters (name (type[, unit]) = default):']
+             '[-r __ns:=/NAMESPACE]]', '', *summary, '',
+             'Parameters (name (type[, unit]) = default):']
     for spec in specs:
         kind = spec.type_name + (f', {spec.unit}' if spec.unit else '')
         extra = ''
@@ -192,27 +193,46 @@ def _type_hint(spec: ParamSpec, value) -> str:
     return ''
 
 
+def override_value(node, name: str):
+    """The value given for `name` on the command line or in a params file (None if none).
+
+    rclpy has no public accessor for the overrides: this reads Node._parameter_overrides."""
+    override = getattr(node, '_parameter_overrides', {}).get(name)
+    return override.value if override is not None else None
+
+
+def unknown_overrides(node, specs: Sequence[ParamSpec]) -> list[str]:
+    """Names given on the command line or in a params file that no spec declares (typos)."""
+    known = {spec.name for spec in specs} | {'use_sim_time', 'start_type_description_service'}
+    return sorted(name for name in getattr(node, '_parameter_overrides', {})
+                  if name not in known and not name.startswith('qos_overrides.'))
+
+
 def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """Declare every spec on the node with its descriptor and return the values.
 
     A value of the wrong type (an override from the command line or a params file) becomes a
-    ConfigError naming the parameter, with a hint (e.g. 'write 1000.0').
+    ConfigError naming the parameter, with a hint (e.g. 'write 1000.0'); a value outside the
+    descriptor's range a ConfigError naming the range.
     """
     import rclpy.exceptions
     from rclpy.parameter import Parameter
     values = {}
     for spec in specs:
         # an empty list has no element type: declare such a parameter by its type instead
-        default = (Parameter.Type.DOUBLE_ARRAY if spec.type_name == 'double[]' and not spec.default
-                   else spec.default)
+        default = (Parameter.Type.DOUBLE_ARRAY
+                   if spec.type_name == 'double[]' and not spec.default else spec.default)
         try:
             value = node.declare_parameter(spec.name, default, descriptor(spec)).value
             values[spec.name] = [] if value is None and spec.type_name == 'double[]' else value
-        except (rclpy.exceptions.InvalidParameterTypeException,
-                rclpy.exceptions.InvalidParameterValueException) as exc:
-            override = node.get_parameter_overrides().get(spec.name) if hasattr(
-                node, 'get_parameter_overrides') else None
-            value = override.value if override is not None else None
+        except rclpy.exceptions.InvalidParameterTypeException as exc:
+            value = override_value(node, spec.name)
             raise ConfigError(f"parameter '{spec.name}': expected {spec.type_name}, got "
                               f'{value!r}{_type_hint(spec, value)}') from exc
+        except rclpy.exceptions.InvalidParameterValueException as exc:
+            value = override_value(node, spec.name)
+            if spec.range is not None:
+                raise ConfigError(f"parameter '{spec.name}': {value!r} is out of range "
+                                  f'[{spec.range[0]}, {spec.range[1]}]') from exc
+            raise ConfigError(f"parameter '{spec.name}': {exc}") from exc
     return values

@@ -1,0 +1,186 @@
+"""profile_player: drives the rig open loop through an input profile and reports what it saw.
+
+For every pressure sample it publishes the profile's valve command for that sample (stamped with
+the sample's stamp, so it also drives a lockstep simulator), records pressures, ground truth
+(joint_measured) and estimates (estimate, when an estimator runs), and at the end prints a
+summary: rate, missing samples, ranges, and the online estimation metrics I / M / Q of the angle
+(deg) and torque (N m) when estimates arrived. Optionally saves the run in pam-simulate's format
+(.npz / .csv), which pam-evaluate reads.
+
+Topics (relative, default namespace '/pam'): subscribes pressures, joint_measured, estimate;
+publishes valve_command. Run `profile_player --help` for the parameters.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
+
+from pam_driver.executors import make_executor
+from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
+                                    merge_overrides, usage_text, wants_help)
+from pam_driver.run_recorder import RunRecorder
+
+NODE_NAME = 'profile_player'
+DEFAULT_NAMESPACE = '/pam'
+DRAIN_TIME = 0.5   # s, wait after the last command for the last estimates
+QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                 depth=100)
+
+PARAMETERS = (
+    ParamSpec('profile', 'validation', 'string', '',
+              "Input profile: 'validation' (the 130 s antagonistic profile shaped like the "
+              "paper's Fig. 8).", choices=('validation',)),
+    ParamSpec('duration', 130.0, 'double', 's', 'Length of the profile.', range=(0.01, 3600.0)),
+    ParamSpec('seed', 0, 'integer', '', 'Seed of the profile.', range=(0, 2 ** 31 - 1)),
+    ParamSpec('rate', 1000.0, 'double', 'Hz', 'Sample rate of the rig (one command per sample).',
+              range=(100.0, 10000.0)),
+    ParamSpec('joint_mode', 'free', 'string', '',
+              "'free' (the angle is evaluated) or 'locked' (the torque is); as the rig runs.",
+              choices=('free', 'locked')),
+    ParamSpec('save', '', 'string', '',
+              "Save the recorded run here (.npz or .csv, pam-simulate's format); '': do not."),
+    ParamSpec('wait_for_estimator', 0.0, 'double', 's',
+              'Before starting, wait up to this long for an estimator to publish on estimate '
+              '(so its metrics cover the whole profile); 0: start at once.',
+              range=(0.0, 3600.0)),
+    ParamSpec('startup_timeout', 30.0, 'double', 's',
+              'Give up if no pressure sample arrives within this time.', range=(0.1, 3600.0)),
+)
+
+SUMMARY = [
+    'Open-loop profile player (pam_driver): publishes the input profile on valve_command, one',
+    'command per pressure sample, records pressures, joint_measured and estimate, prints a',
+    'summary with the online estimation metrics, and exits.',
+]
+
+
+class ProfilePlayer(Node):
+    """Publishes one profile command per pressure sample until the profile ends."""
+
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
+                                                       declare_parameters(self, PARAMETERS)))
+        from pam_model.profiles import validation_profile
+        self.values = values
+        self.U = validation_profile(values['seed'], values['duration'], 1.0 / values['rate']).u
+        self.recorder = RunRecorder(len(self.U), locked=values['joint_mode'] == 'locked')
+        self.finished = Future()
+        self.started = False
+        self._created = self.get_clock().now()
+        self._drain_timer = None
+        self.command_pub = self.create_publisher(ValveCommand, 'valve_command', QOS)
+        self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
+        self.create_subscription(JointMeasurement, 'joint_measured', self._on_truth, QOS)
+        self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
+        self._startup_timer = self.create_timer(values['startup_timeout'], self._on_timeout)
+        self.get_logger().info(
+            f"playing the {values['profile']} profile ({values['duration']:g} s, seed "
+            f"{values['seed']}) on {self.resolve_topic_name('valve_command')}, one command per "
+            f"sample of {self.resolve_topic_name('pressures')}")
+
+    def _on_timeout(self) -> None:
+        self.destroy_timer(self._startup_timer)
+        if not self.started:
+            self.get_logger().error(
+                f"no pressure sample within {self.values['startup_timeout']:g} s: is the rig "
+                f"(sim_node or the driver) running on this ROS_DOMAIN_ID and namespace?")
+            self.finished.set_result(1)
+
+    def _on_pressures(self, msg: Pressures) -> None:
+        if self.finished.done():
+            return
+        if not self.started:
+            if not self._estimator_ready():
+                return
+            self.started = True
+            self.get_logger().info('first pressure sample: profile started')
+        j = self.recorder.add_pressures(msg.header.stamp, msg.p1, msg.p2)
+        if j is None:
+            return
+        if j >= len(self.U):
+            if self._drain_timer is None:   # let the last estimates arrive, then finish
+                self._drain_timer = self.create_timer(DRAIN_TIME, self._finish_playing)
+            return
+        command = ValveCommand()
+        command.header.stamp = msg.header.stamp
+        command.header.frame_id = msg.header.frame_id
+        command.u1, command.u2 = float(self.U[j, 0]), float(self.U[j, 1])
+        self.recorder.set_command(j, command.u1, command.u2)
+        self.command_pub.publish(command)
+
+    def _finish_playing(self) -> None:
+        self.destroy_timer(self._drain_timer)
+        if not self.finished.done():
+            self.finished.set_result(0)
+
+    def _estimator_ready(self) -> bool:
+        """True once an estimator publishes, or when not waiting (any more) for one."""
+        wait = self.values['wait_for_estimator']
+        if wait <= 0.0 or self.count_publishers(self.resolve_topic_name('estimate')) > 0:
+            return True
+        waited = (self.get_clock().now() - self._created).nanoseconds * 1e-9
+        if waited < wait:
+            return False
+        self.get_logger().warn(f'no estimator after {wait:g} s: starting without one')
+        self.values['wait_for_estimator'] = 0.0
+        return True
+
+    def _on_truth(self, msg: JointMeasurement) -> None:
+        self.recorder.add_truth(msg.header.stamp, msg.angle, msg.angular_velocity, msg.torque)
+
+    def _on_estimate(self, msg: JointEstimate) -> None:
+        self.recorder.add_estimate(msg.header.stamp, msg.angle, msg.torque)
+
+    def finish(self) -> int:
+        """Print the summary (and save the run); returns the exit code."""
+        if not self.started:
+            return 1
+        for line in self.recorder.summary(self.values['rate']):
+            print(line, flush=True)
+        if self.values['save']:
+            path = self.recorder.save(self.values['save'], 1.0 / self.values['rate'])
+            print(f'saved the run to {path}', flush=True)
+        return 0
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+            f'{NODE_NAME} --ros-args -p duration:=30.0 -p save:=/tmp/run.npz']))
+        return 0
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = ProfilePlayer()
+        executor = make_executor()
+        executor.add_node(node)
+        while rclpy.ok() and not node.finished.done():
+            executor.spin_until_future_complete(node.finished, timeout_sec=0.5)
+        code = node.finish()
+    except ConfigError as exc:
+        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        if node is not None:
+            code = node.finish()
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,255 @@
+"""Parameters of sim_node: the table they are declared from, their validation and the --help text.
+
+No ROS in here: build_config() turns a plain mapping of parameter values into a checked SimConfig
+(the pam_model objects the node wraps) or raises ConfigError with a message that names the
+parameter. The generic parts (ParamSpec, checks, usage text) are pam_driver.node_params, shared
+with the other PAM nodes. pam_model is imported lazily so that `sim_node --help` stays instant.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from pam_driver.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
+                                    check_command, check_state, fail, merge_overrides,
+                                    wants_help)
+from pam_driver.node_params import defaults as _defaults
+from pam_driver.node_params import usage_text as _usage_text
+
+__all__ = ['PARAMETERS', 'ConfigError', 'SimConfig', 'U_MAX', 'U_MIN', 'build_config',
+           'defaults', 'describe', 'usage_text', 'wants_help']
+
+#: Choices of the string parameters. The law names are pam_model.physics.FRICTION_LAWS and
+#: FORCE_MODELS (a unit test checks they agree).
+FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
+FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')
+JOINT_MODES = ('free', 'locked')
+TIMINGS = ('realtime', 'lockstep')
+
+RATE_RANGE = (100.0, 10000.0)   # Hz
+BITS_RANGE = (-1, 32)
+SEED_RANGE = (0, 2 ** 31 - 1)
+NOISE_RANGE = (-1.0, 1.0e6)     # Pa
+TIMEOUT_RANGE = (0.0, 3600.0)   # s
+CATCH_UP_RANGE = (0, 1000)      # periods
+
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec('plant_parameters', 'default', 'string', '',
+              "Table II parameter set of the simulated plant: 'default' (PAM2's p_w2 corrected to "
+              "+15.75 N), 'printed' (as printed in the paper) or the path of a Table II YAML "
+              'file.'),
+    ParamSpec('mismatch', '', 'string', '',
+              "Plant mismatch scenario applied to plant_parameters: '' (none), 'mild' or the path "
+              'of a scenario YAML file. A scenario also brings its pressure sensor model.'),
+    ParamSpec('valve_map', 'default', 'string', '',
+              "Valve map kappa(u) of the plant: 'default' (shipped table) or the path of a "
+              'voltage_V,alpha CSV file.'),
+    ParamSpec('friction_law', 'proposed', 'string', '',
+              'Friction law of the plant.', choices=FRICTION_LAWS),
+    ParamSpec('force_model', 'proposed', 'string', '',
+              'Muscle force model of the plant.', choices=FORCE_MODELS),
+    ParamSpec('joint_mode', 'free', 'string', '',
+              "'free' joint, or 'locked' at its initial angle (torque experiments: the torque "
+              'meter holds the joint).', choices=JOINT_MODES),
+    ParamSpec('initial_state', [0.0, 0.0, 450000.0, 450000.0], 'double[]',
+              'rad, rad/s, Pa, Pa',
+              'Initial true state [psi, psi_dot, P1, P2]; pressures are absolute.'),
+    ParamSpec('initial_command', [5.5, 5.5], 'double[]', 'V',
+              'Valve voltages [u1, u2] held until the first valve_command arrives, in [0, 10].'),
+    ParamSpec('pressure_noise_std', -1.0, 'double', 'Pa',
+              'Standard deviation of the white noise on each pressure reading; negative: from '
+              'the mismatch scenario, or 0 (ideal) if none.', range=NOISE_RANGE),
+    ParamSpec('quantisation_bits', -1, 'integer', 'bits',
+              'ADC resolution of the pressure sensors over their range; 0: no quantisation; -1: '
+              'from the mismatch scenario, or ideal if none.', range=BITS_RANGE),
+    ParamSpec('seed', 0, 'integer', '',
+              'Seed of the sensor noise generator (same seed + same commands in lockstep give '
+              'bit-identical pressures).', range=SEED_RANGE),
+    ParamSpec('timing', 'realtime', 'string', '',
+              "'realtime': one sample per 1/rate s of wall clock, stamped with the node clock. "
+              "'lockstep': sample k is stamped t_k = k/rate and the plant steps only when a "
+              'command for step k arrives.', choices=TIMINGS),
+    ParamSpec('rate', 1000.0, 'double', 'Hz',
+              'Sample rate; the model step is h = 1/rate.', range=RATE_RANGE),
+    ParamSpec('max_catch_up', 10, 'integer', 'periods',
+              'Realtime only: when the sampling thread wakes up late, up to this many overdue '
+              'samples are taken back to back so the plant keeps pace with the wall clock; a '
+              'longer stall is skipped (the plant pauses). 0: always skip.',
+              range=CATCH_UP_RANGE),
+    ParamSpec('publish_clock', False, 'bool', '',
+              'Publish /clock (rosgraph_msgs/Clock) with the stamp of every sample '
+              '(simulated time t_k in lockstep).'),
+    ParamSpec('lockstep_timeout', 0.5, 'double', 's',
+              'Lockstep only: while waiting for a command, re-publish the current sample after '
+              'this long so a late-joining controller can start; 0: never.',
+              range=TIMEOUT_RANGE),
+    ParamSpec('frame_id', 'pam_joint', 'string', '',
+              'frame_id of the published headers.'),
+)
+
+PARAMETERS_BY_NAME = {spec.name: spec for spec in PARAMETERS}
+
+
+def defaults() -> dict[str, Any]:
+    """The default value of every parameter."""
+    return _defaults(PARAMETERS)
+
+
+SUMMARY = (
+    'Simulated antagonistic PAM rig (pam_driver): the plant of pam_model stepped at a fixed',
+    "rate. Default namespace '/pam'. Topics (reliable, keep last 100):",
+    '  publishes   pressures       pam_interfaces/Pressures         measured P1, P2 (Pa abs)',
+    '  publishes   joint_measured  pam_interfaces/JointMeasurement  true angle, velocity, '
+    'torque',
+    '  subscribes  valve_command   pam_interfaces/ValveCommand      u1, u2 (V), held',
+    '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
+    '  publishes   /clock          rosgraph_msgs/Clock              if publish_clock',
+)
+
+
+def usage_text(prog: str = 'sim_node') -> str:
+    """The --help text: what the node does and every parameter with type, unit and default."""
+    return _usage_text(prog, SUMMARY, PARAMETERS, examples=(
+        f'{prog} --ros-args -p timing:=lockstep -p mismatch:=mild -p seed:=3',
+        f'{prog} --ros-args --params-file <share>/pam_driver/config/sim_node_mild.yaml',
+    ))
+
+
+@dataclass
+class SimConfig:
+    """The checked configuration of sim_node and the pam_model objects made from it."""
+
+    values: dict
+    parameters: Any            # pam_model.parameters.Parameters of the plant (mismatch applied)
+    scenario: Any              # pam_model.mismatch.MismatchScenario or None
+    sensor: Any                # pam_model.sensor.PressureSensor
+    model: Any                 # pam_model.model.PamModel
+    sensor_source: str = ''
+    summary: list = field(default_factory=list)
+
+    @property
+    def timing(self) -> str:
+        return self.values['timing']
+
+    @property
+    def rate(self) -> float:
+        return self.values['rate']
+
+    @property
+    def h(self) -> float:
+        return self.model.h
+
+    def make_rig(self):
+        """A fresh pam_model SimulatedRig in the initial state."""
+        from pam_model.rig import SimulatedRig
+        return SimulatedRig(self.model, self.values['initial_state'], sensor=self.sensor,
+                            seed=self.values['seed'], u0=tuple(self.values['initial_command']))
+
+
+def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
+    """Check the parameter values (defaults for those not given) and build the plant.
+
+    Raises ConfigError naming the parameter; file problems carry pam_model's ParameterError text.
+    """
+    values = check_all(PARAMETERS, merge_overrides(PARAMETERS, overrides))
+    values['initial_state'] = check_state('initial_state', values['initial_state'])
+    values['initial_command'] = check_command('initial_command', values['initial_command'])
+    if not values['plant_parameters'].strip():
+        fail('plant_parameters', "empty; use 'default', 'printed' or a YAML path")
+    if not values['valve_map'].strip():
+        fail('valve_map', "empty; use 'default' or a CSV path")
+
+    from pam_model.mismatch import load_scenario
+    from pam_model.model import PamModel
+    from pam_model.parameters import ParameterError, load_parameters
+    from pam_model.sensor import PressureSensor
+    from pam_model.valve_map import load_valve_map
+
+    try:
+        nominal = load_parameters(values['plant_parameters'])
+    except (ParameterError, ValueError) as exc:
+        fail('plant_parameters', str(exc))
+    scenario = None
+    params = nominal
+    if values['mismatch'].strip():
+        try:
+            scenario = load_scenario(values['mismatch'])
+        except (ParameterError, ValueError) as exc:
+            fail('mismatch', str(exc))
+        try:
+            params = scenario.apply(nominal)
+        except (ParameterError, ValueError) as exc:
+            fail('mismatch', f'applied to {values["plant_parameters"]!r}: {exc}')
+    try:
+        valve_map = load_valve_map(values['valve_map'])
+    except (ValueError, OSError) as exc:
+        fail('valve_map', str(exc))
+
+    base = scenario.sensor if scenario is not None else PressureSensor()
+    noise = values['pressure_noise_std']
+    bits = values['quantisation_bits']
+    origin = f"mismatch '{scenario.name}'" if scenario is not None else 'ideal'
+    noise_from = origin if noise < 0.0 else 'parameter'
+    bits_from = origin if bits < 0 else 'parameter'
+    try:
+        sensor = PressureSensor(noise_std=base.noise_std if noise < 0.0 else noise,
+                                bits=base.bits if bits < 0 else bits,
+                                range_min=base.range_min, range_max=base.range_max)
+    except ValueError as exc:
+        fail('pressure_noise_std' if 'noise' in str(exc) else 'quantisation_bits', str(exc))
+
+    try:
+        model = PamModel(params=params, valve_map=valve_map, friction=values['friction_law'],
+                         force=values['force_model'], locked=values['joint_mode'] == 'locked',
+                         h=1.0 / values['rate'])
+    except ValueError as exc:
+        raise ConfigError(f'cannot build the plant model: {exc}') from exc
+
+    sensor_text = (f'noise std {sensor.noise_std:g} Pa ({noise_from}), '
+                   + (f'{sensor.bits}-bit ADC over [{sensor.range_min:g}, {sensor.range_max:g}] Pa'
+                      if sensor.bits else f'no quantisation, range [{sensor.range_min:g}, '
+                      f'{sensor.range_max:g}] Pa')
+                   + f' ({bits_from}), seed {values["seed"]}')
+    config = SimConfig(values=values, parameters=params, scenario=scenario, sensor=sensor,
+                       model=model, sensor_source=sensor_text)
+    try:
+        config.make_rig()  # the last checks (state shape) live in SimulatedRig
+    except ValueError as exc:
+        raise ConfigError(f'cannot build the simulated rig: {exc}') from exc
+    config.summary = describe(config)
+    return config
+
+
+def describe(config: SimConfig) -> list[str]:
+    """The start-up log lines: what runs."""
+    v = config.values
+    if config.scenario is None:
+        mismatch = 'mismatch: none (plant = nominal parameters)'
+    else:
+        s = config.scenario
+        changes = [f'{k} x{f:g}' for k, f in s.factors.items()]
+        changes += [f'{k} {o:+g}' for k, o in s.offsets.items()]
+        source = '' if v['mismatch'] == s.name else f" ({v['mismatch']})"
+        mismatch = (f"mismatch: '{s.name}'{source}: "
+                    + (', '.join(changes) if changes else 'no parameter change'))
+    state = v['initial_state']
+    lines = [
+        f"plant: parameters {v['plant_parameters']!r}, valve map {v['valve_map']!r}, friction "
+        f"law {v['friction_law']!r}, force model {v['force_model']!r}",
+        mismatch,
+        f"joint mode: {v['joint_mode']}; initial state psi {state[0]:g} rad, psi_dot "
+        f"{state[1]:g} rad/s, P1 {state[2]:g} Pa, P2 {state[3]:g} Pa; initial command "
+        f"u1 {v['initial_command'][0]:g} V, u2 {v['initial_command'][1]:g} V",
+    ]
+    timing = (f"timing: {v['timing']} at {v['rate']:g} Hz (model step h = {1e3 / v['rate']:g} ms)"
+              + ('; /clock published' if v['publish_clock'] else ''))
+    if v['timing'] == 'realtime':
+        timing += f"; catch up at most {v['max_catch_up']} overdue periods, else skip ahead"
+    if v['timing'] == 'lockstep':
+        timing += (f"; re-publish after {v['lockstep_timeout']:g} s without a command"
+                   if v['lockstep_timeout'] > 0 else '; never re-publish')
+    lines.append(timing)
+    lines.append(f'sensor: {config.sensor_source}')
+    return lines

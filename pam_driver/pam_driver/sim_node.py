@@ -1,0 +1,418 @@
+"""sim_node: the simulated antagonistic PAM rig, a drop-in for the hardware driver.
+
+A thin ROS wrapper around pam_model.rig.SimulatedRig (physics, sensor model, command sanitising
+and counting all live there). Run `sim_node --help` for the parameters.
+
+Topics (relative names resolve under the node namespace, '/pam' unless remapped with
+`--ros-args -r __ns:=/other`):
+
+    pressures       pam_interfaces/Pressures         published, one per sample (1 kHz by default):
+                                                     measured P1, P2 (Pa abs) with sensor noise
+    joint_measured  pam_interfaces/JointMeasurement  published with every sample: ground truth
+                                                     angle (rad), angular velocity (rad/s) and
+                                                     true torque (N m)
+    valve_command   pam_interfaces/ValveCommand      subscribed: u1, u2 (V), held until the next
+    /diagnostics    diagnostic_msgs/DiagnosticArray  published about once a second (absolute name)
+    /clock          rosgraph_msgs/Clock              published with every sample if publish_clock
+
+QoS: pressures, joint_measured and valve_command are RELIABLE, KEEP_LAST depth 100, VOLATILE (a
+1 kHz loop across processes loses none with depth 100; a subscriber that joins late gets no
+history). /diagnostics is reliable, keep last 10; /clock reliable, keep last 10 (compatible
+with rclpy's best-effort /clock subscription).
+
+Timing 'realtime': a dedicated thread (not an rclpy timer) sleeps to absolute deadlines
+start + n/rate on the monotonic clock, so there is no drift. At each deadline it steps the model
+once with the command held at that moment (h = 1/rate), reads the sensors and publishes, stamped
+with the node clock now (system time; this node never runs on simulated time). A sample taken
+more than one period after its deadline is a *late step*. When the thread wakes up late, up to
+max_catch_up overdue samples are CAUGHT UP back to back (the plant keeps pace with the wall clock;
+stamps within such a burst are closer than 1/rate), and a longer stall is SKIPPED: the loop jumps
+to the next future deadline and the plant's time slips behind the wall clock by the skipped
+periods (see pam_driver.timing). Either way every published sample is exactly one model step h
+after the previous one: consumers should step their models by h, not by stamp differences.
+Late steps, skipped periods, the maximum lateness and the achieved rate (over the last
+diagnostics window) are reported on /diagnostics. Subscriptions and timers are spun by
+rclpy.experimental.EventsExecutor (SingleThreadedExecutor if that is unavailable), in bounded
+slices (see pam_driver.executors).
+
+Timing 'lockstep': sample k is stamped with simulated time t_k = k/rate. The plant steps k -> k+1
+only when a command for step k arrives: a ValveCommand whose header.stamp >= t_k (a zero stamp
+means "for the current step"); the node applies it, steps, and publishes sample k+1. A command
+with stamp < t_k comes from the past: it is ignored and counted. While waiting, the current sample
+is re-published unchanged (same stamp, same noise draw) every lockstep_timeout s, so a controller
+that joins late can start. Same seed + same commands give bit-identical pressures. With
+publish_clock, /clock carries t_k.
+
+Bad input: non-finite voltages become 0 V (vent), out-of-range ones are clipped to [0, 10] V (by
+SimulatedRig.set_command); they are counted, logged at most once a second, and reported on
+/diagnostics (level WARN while bad commands arrived in the last window). The node never dies on
+input and never publishes a non-finite sample.
+
+/diagnostics: one DiagnosticStatus 'sim_node: simulated rig' (hardware_id 'simulated-pam-rig')
+with the timing, target and achieved rate, late steps, skipped periods, max lateness (ms),
+samples published, commands received, non-finite / out-of-range commands, past commands
+ignored, last command u1/u2 (V, as applied), joint mode and plant set. Level ERROR if the
+sampling thread failed or a non-finite sample was ever suppressed; WARN if, in the last window,
+bad or past commands arrived, or (realtime) the achieved rate was off by more than 5 % or more
+than 5 % of the samples were late steps; OK otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+
+import rclpy
+import rclpy.utilities
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from builtin_interfaces.msg import Time as TimeMsg
+from rosgraph_msgs.msg import Clock
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
+
+from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_driver.executors import make_executor, spin
+from pam_driver.node_params import declare_parameters, unknown_overrides
+from pam_driver.sim_config import (PARAMETERS, ConfigError, build_config, usage_text,
+                                   wants_help)
+from pam_driver.timing import DeadlineSchedule, RateStatistics
+
+NODE_NAME = 'sim_node'
+DEFAULT_NAMESPACE = '/pam'
+HARDWARE_ID = 'simulated-pam-rig'
+DIAGNOSTICS_PERIOD = 1.0   # s
+RATE_TOLERANCE = 0.05      # realtime: WARN when the achieved rate is off by more than this
+LATE_TOLERANCE = 0.05      # realtime: WARN when more than this fraction of a window is late
+LOG_THROTTLE = 1.0         # s between two log lines about bad input
+
+SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        depth=100, durability=DurabilityPolicy.VOLATILE)
+CLOCK_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                       depth=10)
+
+def _stamp_ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def _time_msg(ns: int) -> TimeMsg:
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+class SimNode(Node):
+    """The simulated rig. Construct, then configure() (raises ConfigError), then start()."""
+
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        self.config = None
+        self._rig = None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = None
+        self._fault = ''
+        self._lockstep_timer = None
+        # counters (guarded by _lock)
+        self._commands_received = 0
+        self._past_commands = 0
+        self._nonfinite_samples = 0
+        self._samples_published = 0
+        self._republished = 0
+        self._last_raw_command = (math.nan, math.nan)
+        self._reported = {'bad': 0, 'past': 0}
+        self._current = None        # lockstep: the messages of the current sample
+        self._last_publish = 0.0    # monotonic time of the last (re)publication
+
+    # ------------------------------------------------------------------ set-up
+    def configure(self) -> None:
+        """Declare and check every parameter, build the plant and the ROS interfaces."""
+        values = declare_parameters(self, PARAMETERS)
+        for name in unknown_overrides(self, PARAMETERS):
+            self.get_logger().warning(f"ignoring unknown parameter '{name}' (see "
+                                      'sim_node --help)')
+        if self.get_parameter('use_sim_time').value:
+            self.get_logger().warning('use_sim_time is true: ignored, the simulated rig runs on '
+                                      'the system clock (it publishes /clock itself with '
+                                      'publish_clock)')
+            self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, False)])
+
+        self.config = build_config(values)
+        self._rig = self.config.make_rig()
+        warm_up = self.config.make_rig()  # load the compiled model now, not at the 2nd sample
+        warm_up.step()
+        warm_up.sample()
+        self._frame_id = values['frame_id']
+        self._lockstep = self.config.timing == 'lockstep'
+        self._period_ns = 1e9 / self.config.rate
+        self._stats = RateStatistics(1.0 / self.config.rate, time.monotonic())
+
+        self._pub_pressures = self.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
+        self._pub_joint = self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS)
+        self._pub_clock = (self.create_publisher(Clock, '/clock', CLOCK_QOS)
+                           if values['publish_clock'] else None)
+        self._sub_command = self.create_subscription(ValveCommand, 'valve_command',
+                                                     self._on_command, SAMPLE_QOS)
+        self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: simulated rig',
+                                                 HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
+        for line in self.config.summary:
+            self.get_logger().info(line)
+        self.get_logger().info(
+            f'topics: publishing {self._pub_pressures.topic_name}, '
+            f'{self._pub_joint.topic_name}, /diagnostics'
+            + (', /clock' if self._pub_clock else '')
+            + f'; subscribing {self._sub_command.topic_name}')
+
+    def start(self) -> None:
+        """Start sampling: the realtime thread, or sample 0 and the lockstep watchdog."""
+        self._stats.restart(time.monotonic())
+        if self._lockstep:
+            with self._lock:
+                self._current = self._take_sample(self._lockstep_stamp(0))
+            self._publish(self._current)
+            timeout = self.config.values['lockstep_timeout']
+            if timeout > 0.0:
+                self._lockstep_timer = self.create_timer(max(timeout / 4.0, 0.005),
+                                                         self._on_lockstep_watchdog)
+        else:
+            # The sampler competes for the GIL with the executor thread: hand it over sooner
+            # than the default 5 ms so a deadline is not missed behind a callback.
+            sys.setswitchinterval(0.0005)
+            self._thread = threading.Thread(target=self._realtime_loop, name='sim_node_sampler',
+                                            daemon=True)
+            self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the sampling thread (safe to call twice)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+
+    # ------------------------------------------------------------------ sampling
+    def _lockstep_stamp(self, k: int) -> int:
+        return round(k * self._period_ns)
+
+    def _take_sample(self, stamp_ns: int):
+        """Read the rig (draws sensor noise) into messages; None if the state is not finite.
+
+        Call with _lock held."""
+        sample = self._rig.sample()
+        values = (float(sample.p_measured[0]), float(sample.p_measured[1]), float(sample.x[0]),
+                  float(sample.x[1]), float(sample.torque))
+        if not all(math.isfinite(v) for v in values):
+            self._nonfinite_samples += 1
+            self.get_logger().error(f'non-finite sample at step {self._rig.k} suppressed: '
+                                    f'state {list(sample.x)}', throttle_duration_sec=LOG_THROTTLE)
+            return None
+        stamp = _time_msg(stamp_ns)
+        pressures = Pressures()
+        pressures.header.stamp = stamp
+        pressures.header.frame_id = self._frame_id
+        pressures.p1, pressures.p2 = values[0], values[1]
+        joint = JointMeasurement()
+        joint.header.stamp = stamp
+        joint.header.frame_id = self._frame_id
+        joint.angle, joint.angular_velocity, joint.torque = values[2], values[3], values[4]
+        clock = Clock(clock=stamp) if self._pub_clock is not None else None
+        return clock, pressures, joint
+
+    def _publish(self, messages) -> None:
+        if messages is None:
+            return
+        clock, pressures, joint = messages
+        if clock is not None:
+            self._pub_clock.publish(clock)
+        self._pub_pressures.publish(pressures)
+        self._pub_joint.publish(joint)
+        self._last_publish = time.monotonic()
+        with self._lock:
+            self._samples_published += 1
+
+    def _realtime_loop(self) -> None:
+        period = 1.0 / self.config.rate
+        clock = self.get_clock()
+        start = time.monotonic()
+        schedule = DeadlineSchedule(period, start, self.config.values['max_catch_up'])
+        self._stats.restart(start)
+        first = True
+        try:
+            while not self._stop.is_set():
+                delay = schedule.deadline - time.monotonic()
+                if delay > 0.0:
+                    time.sleep(delay)
+                now = time.monotonic()
+                stamp_ns = clock.now().nanoseconds
+                with self._lock:
+                    if not first:
+                        self._rig.step()
+                    first = False
+                    messages = self._take_sample(stamp_ns)
+                self._publish(messages)
+                lateness = schedule.lateness(now)
+                skipped = schedule.advance(now)
+                self._stats.record(lateness, skipped)
+        except Exception as exc:  # noqa: BLE001 - report, do not die silently
+            if self._stop.is_set() or not rclpy.ok(context=self.context):
+                return  # shutting down: the publishers went away under us
+            self._fault = f'sampling thread stopped: {type(exc).__name__}: {exc}'
+            self.get_logger().error(self._fault)
+
+    # ------------------------------------------------------------------ commands
+    def _on_command(self, msg: ValveCommand) -> None:
+        messages = None
+        with self._lock:
+            self._commands_received += 1
+            self._last_raw_command = (msg.u1, msg.u2)
+            if self._lockstep:
+                stamp = _stamp_ns(msg.header.stamp)
+                t_k = self._lockstep_stamp(self._rig.k)
+                if stamp != 0 and stamp < t_k:
+                    self._past_commands += 1
+                    past, k = self._past_commands, self._rig.k
+                    ok = True
+                else:
+                    ok = self._rig.set_command(msg.u1, msg.u2)
+                    self._rig.step()
+                    messages = self._current = self._take_sample(self._lockstep_stamp(self._rig.k))
+                    past = None
+            else:
+                ok = self._rig.set_command(msg.u1, msg.u2)
+                past = None
+            non_finite = self._rig.non_finite_commands
+            out_of_range = self._rig.out_of_range_commands
+        if messages is not None:
+            self._stats.record(0.0)
+            self._publish(messages)
+        if past is not None:
+            self.get_logger().warning(
+                f'ignored a valve_command from the past (stamp {stamp / 1e9:.6f} s < t_k = '
+                f'{t_k / 1e9:.6f} s of step {k}); {past} so far',
+                throttle_duration_sec=LOG_THROTTLE)
+        if not ok:
+            self.get_logger().warning(
+                f'bad valve_command u1={msg.u1!r} V, u2={msg.u2!r} V sanitised to '
+                f'({self._rig.u[0]:g}, {self._rig.u[1]:g}) V (non-finite -> 0 V vent, else '
+                f'clipped to [0, 10] V); so far {non_finite} non-finite, {out_of_range} '
+                'out-of-range voltages', throttle_duration_sec=LOG_THROTTLE)
+
+    def _on_lockstep_watchdog(self) -> None:
+        timeout = self.config.values['lockstep_timeout']
+        if self._current is None or time.monotonic() - self._last_publish < timeout:
+            return
+        with self._lock:
+            self._republished += 1
+            k = self._rig.k
+        self.get_logger().info(f'lockstep: waiting for a valve_command for step {k} '
+                               f'(t = {self._lockstep_stamp(k) / 1e9:.6f} s); re-publishing '
+                               'the current sample', throttle_duration_sec=10.0)
+        self._publish(self._current)
+
+    # ------------------------------------------------------------------ diagnostics
+    def _report(self):
+        window = self._stats.window(time.monotonic())
+        with self._lock:
+            rig = self._rig
+            bad = rig.bad_commands
+            values = {
+                'timing': self.config.timing,
+                'rate target (Hz)': self.config.rate,
+                'achieved rate (Hz)': window.achieved_rate,
+                'late steps': window.total_late_steps,
+                'late steps (last window)': window.late_steps,
+                'skipped periods': window.total_skipped_periods,
+                'max lateness (ms)': window.max_lateness * 1e3,
+                'max lateness since start (ms)': window.max_lateness_total * 1e3,
+                'samples published': self._samples_published,
+                'simulated time (s)': rig.t,
+                'commands received': self._commands_received,
+                'non-finite commands': rig.non_finite_commands,
+                'out-of-range commands': rig.out_of_range_commands,
+                'past commands ignored': self._past_commands,
+                'last command u1 (V)': rig.u[0],
+                'last command u2 (V)': rig.u[1],
+                'last command received (V)': self._last_raw_command,
+                'joint mode': self.config.values['joint_mode'],
+                'plant parameters': self.config.values['plant_parameters'],
+                'mismatch': self.config.values['mismatch'] or 'none',
+                'non-finite samples suppressed': self._nonfinite_samples,
+            }
+            if self._lockstep:
+                values['republished samples'] = self._republished
+            new_bad = bad - self._reported['bad']
+            new_past = self._past_commands - self._reported['past']
+            self._reported = {'bad': bad, 'past': self._past_commands}
+            k = rig.k
+
+        problems = []
+        level = OK
+        if self._fault:
+            return ERROR, self._fault, values
+        if self._nonfinite_samples:
+            level = ERROR
+            problems.append(f'{self._nonfinite_samples} non-finite samples suppressed')
+        if new_bad:
+            level = max(level, WARN)
+            problems.append(f'{new_bad} bad command voltages sanitised in the last window')
+        if new_past:
+            level = max(level, WARN)
+            problems.append(f'{new_past} commands from the past ignored in the last window')
+        if (not self._lockstep and window.duration > 0.5
+                and not abs(window.achieved_rate - self.config.rate)
+                <= RATE_TOLERANCE * self.config.rate):
+            level = max(level, WARN)
+            problems.append(f'achieved rate {window.achieved_rate:.1f} Hz, target '
+                            f'{self.config.rate:g} Hz ({window.late_steps} late steps)')
+        if (not self._lockstep and window.samples
+                and window.late_steps > LATE_TOLERANCE * window.samples):
+            level = max(level, WARN)
+            problems.append(f'{window.late_steps} of {window.samples} samples late by more than '
+                            f'a period (max {window.max_lateness * 1e3:.2f} ms)')
+        if problems:
+            message = '; '.join(problems)
+        elif self._lockstep:
+            message = (f'lockstep: step {k}, t = {self._lockstep_stamp(k) / 1e9:.3f} s, '
+                       f'{window.achieved_rate if window.samples else 0.0:.1f} steps/s')
+        else:
+            message = f'realtime: {window.achieved_rate:.1f} Hz'
+        return level, message, values
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else list(args)
+    if wants_help(argv):
+        sys.stdout.write(usage_text())
+        return 0
+    leftover = rclpy.utilities.remove_ros_args(argv)[1:]
+    if leftover:
+        sys.stderr.write(f'sim_node: error: unknown argument {leftover[0]!r}; parameters are set '
+                         'with --ros-args -p NAME:=VALUE (see sim_node --help)\n')
+        return 2
+
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = SimNode()
+        try:
+            node.configure()
+        except ConfigError as exc:
+            node.get_logger().error(f'invalid configuration: {exc}')
+            return 2
+        executor = make_executor(events=True)  # this node never runs on simulated time
+        executor.add_node(node)
+        node.start()
+        spin(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.stop()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

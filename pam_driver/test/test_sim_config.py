@@ -1,0 +1,126 @@
+"""Unit tests of pam_driver.sim_config: parameter table, validation, --help text (no ROS)."""
+
+import math
+
+import pytest
+
+from pam_driver.sim_config import (PARAMETERS, ConfigError, build_config, defaults, usage_text,
+                                   wants_help)
+import pam_driver.sim_config as sim_config
+
+CONTRACT = ('plant_parameters', 'mismatch', 'friction_law', 'force_model', 'joint_mode',
+            'initial_state', 'initial_command', 'pressure_noise_std', 'quantisation_bits',
+            'seed', 'timing', 'rate', 'publish_clock', 'lockstep_timeout', 'frame_id')
+
+
+def test_contract_parameters_and_defaults():
+    names = [spec.name for spec in PARAMETERS]
+    assert set(CONTRACT) <= set(names)
+    assert len(names) == len(set(names))
+    d = defaults()
+    assert d['initial_state'] == [0.0, 0.0, 450000.0, 450000.0]
+    assert d['initial_command'] == [5.5, 5.5]
+    assert d['rate'] == 1000.0 and d['lockstep_timeout'] == 0.5
+    assert d['quantisation_bits'] == -1 and d['seed'] == 0 and d['publish_clock'] is False
+    assert d['timing'] == 'realtime' and d['frame_id'] == 'pam_joint' and d['mismatch'] == ''
+    assert d['max_catch_up'] == 10
+
+
+def test_law_names_agree_with_pam_model():
+    from pam_model import physics
+    assert sim_config.FRICTION_LAWS == physics.FRICTION_LAWS
+    assert sim_config.FORCE_MODELS == physics.FORCE_MODELS
+    assert (sim_config.U_MIN, sim_config.U_MAX) == (physics.U_MIN, physics.U_MAX)
+
+
+def test_default_configuration():
+    config = build_config({})
+    assert config.h == pytest.approx(1e-3)
+    assert config.scenario is None
+    assert config.sensor.noise_std == 0.0 and config.sensor.bits == 0
+    assert not config.model.locked
+    rig = config.make_rig()
+    assert rig.u == (5.5, 5.5)
+    assert list(rig.x) == [0.0, 0.0, 450000.0, 450000.0]
+    assert any(line.startswith('timing: realtime at 1000 Hz') for line in config.summary)
+    assert any('mismatch: none' in line for line in config.summary)
+
+
+def test_mild_mismatch_brings_its_sensor_unless_overridden():
+    config = build_config({'mismatch': 'mild'})
+    nominal = build_config({}).parameters
+    assert config.scenario.name == 'mild'
+    assert config.sensor.noise_std == 2000.0 and config.sensor.bits == 12
+    assert config.parameters.mu_s == pytest.approx(1.2 * nominal.mu_s)
+    assert "mismatch: 'mild'" in ' '.join(config.summary)
+    tuned = build_config({'mismatch': 'mild', 'pressure_noise_std': 0.0, 'quantisation_bits': 0})
+    assert tuned.sensor.noise_std == 0.0 and tuned.sensor.bits == 0
+    explicit = build_config({'pressure_noise_std': 500.0, 'quantisation_bits': 10})
+    assert explicit.sensor.noise_std == 500.0 and explicit.sensor.bits == 10
+
+
+def test_options_reach_the_model():
+    config = build_config({'friction_law': 'tondu', 'force_model': 'no_offset',
+                           'joint_mode': 'locked', 'rate': 2000.0,
+                           'plant_parameters': 'printed'})
+    assert config.model.friction == 'tondu' and config.model.force == 'no_offset'
+    assert config.model.locked and config.h == pytest.approx(5e-4)
+    assert config.parameters.p_w2_2 == pytest.approx(-15.75)
+
+
+@pytest.mark.parametrize('overrides, words', [
+    ({'joint_mode': 'sideways'}, ['joint_mode', 'sideways', 'free, locked']),
+    ({'friction_law': 'sticky'}, ['friction_law', 'tondu']),
+    ({'force_model': ''}, ['force_model']),
+    ({'timing': 'fast'}, ['timing', 'lockstep']),
+    ({'plant_parameters': '/nonexistent.yaml'}, ['plant_parameters', 'cannot read']),
+    ({'plant_parameters': ' '}, ['plant_parameters', 'empty']),
+    ({'mismatch': 'wild'}, ['mismatch', 'wild']),
+    ({'valve_map': '/nonexistent.csv'}, ['valve_map']),
+    ({'initial_state': [0.0, 0.0, 4e5]}, ['initial_state', '4 numbers']),
+    ({'initial_state': [0.0, 0.0, math.nan, 4e5]}, ['initial_state', 'finite']),
+    ({'initial_state': [0.0, 0.0, 0.0, 4e5]}, ['initial_state', '> 0 Pa']),
+    ({'initial_command': [5.5]}, ['initial_command', '2 numbers']),
+    ({'initial_command': [5.5, 11.0]}, ['initial_command', '[0.0, 10.0]']),
+    ({'rate': 50.0}, ['rate', 'out of range']),
+    ({'rate': math.nan}, ['rate', 'finite']),
+    ({'lockstep_timeout': -1.0}, ['lockstep_timeout']),
+    ({'quantisation_bits': 40}, ['quantisation_bits']),
+    ({'quantisation_bits': 2.5}, ['quantisation_bits', 'integer']),
+    ({'seed': -3}, ['seed']),
+    ({'max_catch_up': -1}, ['max_catch_up']),
+    ({'publish_clock': 'yes'}, ['publish_clock']),
+    ({'frame_id': 3}, ['frame_id', 'string']),
+    ({'no_such_parameter': 1}, ['no_such_parameter']),
+])
+def test_bad_values_name_the_parameter(overrides, words):
+    with pytest.raises(ConfigError) as info:
+        build_config(overrides)
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_malformed_files_carry_pam_model_messages(tmp_path):
+    plant = tmp_path / 'plant.yaml'
+    plant.write_text('r_p: [unclosed\n')
+    with pytest.raises(ConfigError, match=r"plant_parameters.*not valid YAML"):
+        build_config({'plant_parameters': str(plant)})
+    scenario = tmp_path / 'scenario.yaml'
+    scenario.write_text('factors:\n  mu_s: -1.0\n')
+    with pytest.raises(ConfigError, match=r"mismatch.*mu_s"):
+        build_config({'mismatch': str(scenario)})
+
+
+def test_usage_text_lists_every_parameter():
+    text = usage_text()
+    for spec in PARAMETERS:
+        assert f'  {spec.name} (' in text
+        assert spec.default_text() in text
+    assert 'Hz' in text and 'Pa' in text and 'rad/s' in text
+
+
+def test_wants_help():
+    assert wants_help(['sim_node', '--help'])
+    assert wants_help(['sim_node', '-h'])
+    assert not wants_help(['sim_node'])
+    assert not wants_help(['sim_node', '--ros-args', '-p', 'frame_id:=-h'])

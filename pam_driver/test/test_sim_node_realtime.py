@@ -1,0 +1,160 @@
+"""sim_node in real-time mode, as a separate process, seen from topics."""
+
+from __future__ import annotations
+
+import math
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
+
+RATE = 1000.0                  # Hz, default rate
+MEASURE = 3.0                  # s of samples for the rate test
+STARTUP = 45.0                 # s, first message from a fresh process (loaded machine)
+
+
+def _command(u1: float, u2: float) -> ValveCommand:
+    msg = ValveCommand()
+    msg.u1, msg.u2 = float(u1), float(u2)
+    return msg
+
+
+def _hold(publisher, u1, u2, duration, period=0.01):
+    """Publish (u1, u2) every `period` s for `duration` s."""
+    end = time.monotonic() + duration
+    while time.monotonic() < end:
+        publisher.publish(_command(u1, u2))
+        time.sleep(period)
+
+
+def _mean(values):
+    values = list(values)
+    return sum(values) / len(values)
+
+
+def test_realtime_rate_near_1khz(sim_node, probe, helpers):
+    sim = sim_node('--params-file', helpers.installed_config('sim_node.yaml'))
+    got = probe.subscribe(Pressures, '/pam/pressures')
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
+    sim.wait_for(lambda: len(got) > 0, STARTUP, 'the first /pam/pressures sample')
+
+    time.sleep(0.5)  # let discovery and the first bursts settle
+    start = time.monotonic()
+    time.sleep(MEASURE)
+    window = [m for r, m in got.items() if start <= r < start + MEASURE]
+    stamps = [helpers.stamp_ns(m.header.stamp) * 1e-9 for m in window]
+
+    assert len(stamps) > 100, f'only {len(stamps)} samples in {MEASURE} s'
+    assert all(b > a for a, b in zip(stamps, stamps[1:])), 'stamps must strictly increase'
+    span = stamps[-1] - stamps[0]
+    rate = (len(stamps) - 1) / span
+    assert abs(rate - RATE) <= 0.05 * RATE, f'achieved {rate:.1f} Hz from the stamps'
+    # stamps follow the wall clock: MEASURE s of reception hold about MEASURE s of stamps
+    assert abs(span - MEASURE) <= 0.1 * MEASURE, f'stamps span {span:.3f} s in {MEASURE} s'
+    assert len(stamps) >= 0.9 * MEASURE * RATE, (
+        f'{len(stamps)} samples received in {MEASURE} s, expected about {MEASURE * RATE:.0f}')
+    assert all(helpers.all_finite((m.p1, m.p2)) for m in window)
+    assert window[-1].header.frame_id == 'pam_joint'
+
+    # /diagnostics: about 1 Hz, reporting real-time operation at about the target rate
+    sim.wait_for(lambda: len(helpers.diagnostic_statuses(diagnostics)) >= 2, 10.0,
+                 'two /diagnostics messages')
+    status = helpers.diagnostic_statuses(diagnostics)[-1]
+    assert status.name == 'sim_node: simulated rig'
+    assert status.hardware_id
+    values = {kv.key: kv.value for kv in status.values}
+    for key in ('timing', 'rate target (Hz)', 'achieved rate (Hz)', 'late steps',
+                'max lateness (ms)', 'samples published', 'commands received',
+                'non-finite commands', 'out-of-range commands', 'past commands ignored',
+                'last command u1 (V)', 'last command u2 (V)', 'joint mode', 'plant parameters'):
+        assert key in values, f'/diagnostics misses {key!r}: {values}'
+    assert values['timing'] == 'realtime'
+    assert values['joint mode'] == 'free'
+    assert values['plant parameters'] == 'default'
+    assert float(values['rate target (Hz)']) == RATE
+    assert abs(float(values['achieved rate (Hz)']) - RATE) <= 0.1 * RATE, values
+    assert int(values['samples published']) > 1000
+    assert status.level in (DiagnosticStatus.OK, DiagnosticStatus.WARN)  # WARN if overloaded
+
+
+def test_raising_u1_raises_p1_and_moves_the_joint(sim_node, probe, helpers):
+    sim = sim_node('--params-file', helpers.installed_config('sim_node_mild.yaml'))
+    pressures = probe.subscribe(Pressures, '/pam/pressures')
+    joint = probe.subscribe(JointMeasurement, '/pam/joint_measured')
+    command = probe.publisher(ValveCommand, '/pam/valve_command')
+    sim.wait_for(lambda: len(pressures) > 0 and len(joint) > 0, STARTUP,
+                 'the first pressures and joint_measured samples')
+    sim.wait_for(lambda: command.get_subscription_count() > 0, 10.0,
+                 'sim_node to subscribe valve_command')
+
+    _hold(command, 5.5, 5.5, 0.5)
+    before_p = pressures.messages()[-50:]
+    before_j = joint.messages()[-50:]
+    p1_0, p2_0 = _mean(m.p1 for m in before_p), _mean(m.p2 for m in before_p)
+    psi_0 = _mean(m.angle for m in before_j)
+
+    _hold(command, 9.0, 2.0, 1.5)
+    after_p = pressures.messages()[-50:]
+    after_j = joint.messages()[-50:]
+    p1_1, p2_1 = _mean(m.p1 for m in after_p), _mean(m.p2 for m in after_p)
+    psi_1 = _mean(m.angle for m in after_j)
+
+    assert p1_1 > p1_0 + 50e3, f'P1 {p1_0:.0f} -> {p1_1:.0f} Pa'
+    assert p2_1 < p2_0 - 50e3, f'P2 {p2_0:.0f} -> {p2_1:.0f} Pa'
+    assert psi_1 > psi_0 + 0.05, f'angle {psi_0:.4f} -> {psi_1:.4f} rad'
+    assert all(helpers.all_finite((m.angle, m.angular_velocity, m.torque))
+               for m in joint.messages())
+    # the mild plant has a noisy, 12-bit sensor: readings sit on the ADC grid
+    step = 1.0e6 / (2 ** 12 - 1)
+    assert all(abs(m.p1 / step - round(m.p1 / step)) < 1e-6 for m in after_p)
+
+
+def test_bad_commands_are_sanitised_counted_and_reported(sim_node, probe, helpers):
+    sim = sim_node()
+    pressures = probe.subscribe(Pressures, '/pam/pressures')
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
+    command = probe.publisher(ValveCommand, '/pam/valve_command')
+    sim.wait_for(lambda: len(pressures) > 0, STARTUP, 'the first pressures sample')
+    sim.wait_for(lambda: command.get_subscription_count() > 0, 10.0,
+                 'sim_node to subscribe valve_command')
+
+    for u1 in (math.nan, math.inf, -3.0, 15.0):  # 2 non-finite, 2 out of range; u2 is fine
+        command.publish(_command(u1, 5.5))
+        time.sleep(0.02)
+    sent_at = time.monotonic()
+
+    def reported():
+        for status in helpers.diagnostic_statuses(diagnostics):
+            values = {kv.key: kv.value for kv in status.values}
+            if values.get('commands received') == '4':
+                return status, values
+        return None
+
+    sim.wait_for(lambda: reported() is not None, 10.0,
+                 '/diagnostics to report the 4 commands')
+    status, values = reported()
+    assert values['non-finite commands'] == '2', values
+    assert values['out-of-range commands'] == '2', values
+    assert values['past commands ignored'] == '0', values
+    assert float(values['last command u1 (V)']) == 10.0   # 15 V clipped
+    assert float(values['last command u2 (V)']) == 5.5
+    assert status.level == DiagnosticStatus.WARN, (status.level, status.message)
+
+    # still alive and publishing finite pressures
+    count = len(pressures)
+    sim.wait_for(lambda: len(pressures) > count + 200, 10.0, 'more samples after bad commands')
+    assert sim.alive()
+    assert all(helpers.all_finite((m.p1, m.p2)) for m in pressures.messages())
+    assert len([m for m in pressures.since(sent_at)]) > 200
+    # the warning is throttled: a handful of lines, not one per command per second
+    assert sim.stderr.count('bad valve_command') <= 3, sim.stderr
+
+
+def test_namespace_remap_overrides_the_default(sim_node, probe, helpers):
+    sim = sim_node('-r', '__ns:=/other')
+    other = probe.subscribe(Pressures, '/other/pressures')
+    default = probe.subscribe(Pressures, '/pam/pressures')
+    sim.wait_for(lambda: len(other) > 0, STARTUP, 'the first /other/pressures sample')
+    time.sleep(0.3)
+    assert len(default) == 0
+    assert '/other/valve_command' in sim.stderr  # start-up log names the resolved topics
