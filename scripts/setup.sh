@@ -113,6 +113,9 @@ check_prereqs() {
 check_prereqs
 
 mkdir -p "$BUILD"
+# colcon must not mistake the build tree or the venv's installed package.xml files for sources
+# (a colcon build in this same checkout, see the README).
+touch "$BUILD/COLCON_IGNORE"
 # Serialise concurrent runs (two `make test` at once).
 exec 9>"$BUILD/.setup.lock"
 flock 9
@@ -126,6 +129,7 @@ if [[ ! -x "$VPY" ]] || ! "$VPY" -c 'import sys' >/dev/null 2>&1; then
   run_logged venv "${PYTHON:-python3}" -m venv "$VENV"
   did=1
 fi
+touch "$VENV/COLCON_IGNORE"
 
 # Hash of the pins only: editing comments of requirements.txt triggers nothing.
 req_hash="$(sed -e 's/#.*//' -e 's/[[:space:]]*$//' -e '/^$/d' requirements.txt | sha256sum | cut -d' ' -f1)"
