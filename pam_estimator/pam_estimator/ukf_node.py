@@ -22,13 +22,14 @@ import sys
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_driver.executors import make_executor, spin
 from pam_driver.node_params import ConfigError, declare_parameters, wants_help
 
 from .estimator_core import EstimatorCore
@@ -160,15 +161,9 @@ def main(args=None) -> int:
     node = None
     try:
         node = UkfNode()
-        executor = SingleThreadedExecutor()
-        try:
-            from rclpy.experimental import EventsExecutor
-            if not node.get_parameter('use_sim_time').value:
-                executor = EventsExecutor()
-        except ImportError:
-            pass
+        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
         executor.add_node(node)
-        executor.spin()
+        spin(executor)
     except ConfigError as exc:
         print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
         return 2
