@@ -103,6 +103,12 @@ class EstimatorCore:
         span = self._arrivals[-1] - self._arrivals[0]
         return (len(self._arrivals) - 1) / span if span > 0 else 0.0
 
+    def largest_input_gap(self) -> float:
+        """Longest time between two pressure arrivals over the window (s): late inputs."""
+        if len(self._arrivals) < 2:
+            return 0.0
+        return float(np.max(np.diff(np.fromiter(self._arrivals, dtype=float))))
+
     def seconds_since_input(self) -> float:
         """Time since the last pressure sample arrived (s); inf before the first."""
         return time.monotonic() - self._arrivals[-1] if self._arrivals else math.inf

@@ -129,6 +129,7 @@ class UkfNode(Node):
         values = {
             'input rate (Hz)': core.input_rate(),
             'time since last pressure sample (s)': age,
+            'largest input gap (ms)': core.largest_input_gap() * 1e3,
             'samples estimated': core.samples,
             'duplicate samples ignored': core.duplicates,
             'resets on time going backwards': core.time_resets,
