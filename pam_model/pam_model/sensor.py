@@ -6,6 +6,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import vectorize
+
+
+@vectorize(['float64(float64, float64, float64, float64)'], cache=True)
+def adc_reading(P, resolution, range_min, range_max):
+    """What an ADC reports for pressure P (Pa): clipped to [range_min, range_max] and rounded to
+    a multiple of resolution (Pa) above range_min (resolution 0: no rounding). A ufunc, so it
+    serves arrays from numpy and scalars inside compiled loops alike."""
+    reading = min(max(P, range_min), range_max)
+    if resolution > 0.0:
+        reading = range_min + np.round((reading - range_min) / resolution) * resolution
+    return reading
 
 
 @dataclass(frozen=True)
@@ -40,12 +52,8 @@ class PressureSensor:
     def measure(self, P, rng: np.random.Generator) -> np.ndarray:
         """Readings (Pa abs) of true pressures P (any shape)."""
         P = np.asarray(P, dtype=float)
-        reading = P + self.noise_std * rng.standard_normal(P.shape) if self.noise_std else P.copy()
-        reading = np.clip(reading, self.range_min, self.range_max)
-        if self.bits:
-            q = self.resolution
-            reading = self.range_min + np.round((reading - self.range_min) / q) * q
-        return reading
+        noisy = P + self.noise_std * rng.standard_normal(P.shape) if self.noise_std else P
+        return adc_reading(noisy, self.resolution, self.range_min, self.range_max)
 
     @classmethod
     def from_dict(cls, data: dict) -> 'PressureSensor':

@@ -1,0 +1,114 @@
+"""The sensor-less closed loop on the batch simulator: plant + sensor -> UKF -> PI -> plant, one
+compiled loop, many gain candidates at once. Used to tune the gains and to check them fast.
+
+Per sample k: the sensor reads the plant's pressures; the UKF steps with u(k-1) and that reading;
+the PI acts on reference(k) - estimate(k) (angle, or torque for a locked joint) and gives u(k);
+the plant steps with u(k). This is the order of the ROS loop in lockstep.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from pam_estimator.pam_ukf import INFO_FIELDS, DEFAULT_TUNING, UkfTuning, ukf_step
+from pam_model.model import PamModel
+from pam_model.physics import joint_torque, muscle_forces, step_array
+from pam_model.sensor import PressureSensor, adc_reading
+
+from .pi import ANTI_WINDUP, PiGains, pi_step
+from .step_metrics import StepReport, step_report
+
+
+@njit(cache=True)
+def closed_loop_kernel(x0, reference, torque_mode, noise, h, plant_array, est_array, kappa_u,
+                       kappa_alpha, friction_law, force_model, locked, Q, R, P0, gains,
+                       beta, u_min, u_max, anti_windup, tracking_time, resolution, range_min,
+                       range_max):
+    """Runs every gain candidate (rows of gains: kp, ki) over the reference (N,).
+
+    noise (N, 2): sensor noise samples (Pa). Returns true feedback (C, N) (rad or N m),
+    estimated feedback (C, N) and commands (C, N, 2) (V).
+    """
+    n = reference.shape[0]
+    c_count = gains.shape[0]
+    truth = np.empty((c_count, n))
+    estimate = np.empty((c_count, n))
+    commands = np.empty((c_count, n, 2))
+    info = np.zeros(len(INFO_FIELDS))
+    plant_p = plant_array[0]
+    for c in range(c_count):
+        x_true = x0.copy()
+        x_hat = x0.copy()
+        P = P0.copy()
+        u = np.array([beta, beta])
+        y = np.empty(2)
+        x_next = np.empty(4)
+        i_term = 0.0
+        for k in range(n):
+            for j in range(2):
+                y[j] = adc_reading(x_true[2 + j] + noise[k, j], resolution, range_min, range_max)
+            ukf_step(x_hat, P, u, y, Q, R, h, est_array, kappa_u, kappa_alpha, friction_law,
+                     force_model, locked, x0[0], 0.0, 1.0e3, 2.0e6, info)
+            if torque_mode:
+                feedback = info[6]
+                F1, F2 = muscle_forces(x_true[0], x_true[2], x_true[3], plant_p, force_model)
+                truth[c, k] = joint_torque(x_true[0], F1, F2, plant_p)
+            else:
+                feedback = x_hat[0]
+                truth[c, k] = x_true[0]
+            estimate[c, k] = feedback
+            u[0], u[1], _, i_term, _ = pi_step(reference[k] - feedback, h, i_term, gains[c, 0],
+                                               gains[c, 1], beta, u_min, u_max, anti_windup,
+                                               tracking_time, 2.0 * h)
+            commands[c, k, 0] = u[0]
+            commands[c, k, 1] = u[1]
+            step_array(x_true, u[0], u[1], h, plant_array, kappa_u, kappa_alpha, friction_law,
+                       force_model, locked, x_next)
+            x_true[:] = x_next
+    return truth, estimate, commands
+
+
+class ClosedLoopRun(NamedTuple):
+    """One candidate's run: time (s), reference, true and estimated feedback, commands (V)."""
+
+    t: np.ndarray
+    reference: np.ndarray
+    truth: np.ndarray
+    estimate: np.ndarray
+    commands: np.ndarray
+    gains: tuple
+
+    def report(self, span: float, hold: float) -> StepReport:
+        return step_report(self.t, self.reference, self.truth, span, hold)
+
+
+def simulate_closed_loop(plant: PamModel, estimator_model: PamModel, reference, gain_candidates,
+                         sensor: PressureSensor = PressureSensor(), tuning: UkfTuning =
+                         DEFAULT_TUNING, mode: str = 'angle', anti_windup: str = 'conditional',
+                         tracking_time: float = 0.1, limits: PiGains = PiGains(0.0, 0.0),
+                         x0=(0.0, 0.0, 4.5e5, 4.5e5), seed: int = 0) -> list[ClosedLoopRun]:
+    """Closed-loop runs of every (kp, ki) in gain_candidates over reference (N,) (rad or N m).
+
+    The plant and the estimator's model must agree on h, friction law, force model and joint
+    mode (the estimator keeps its own parameters); mode 'torque' needs a locked joint.
+    """
+    if mode not in ('angle', 'torque'):
+        raise ValueError(f"mode must be 'angle' or 'torque', got {mode!r}")
+    if (mode == 'torque') != plant.locked:
+        raise ValueError('torque mode runs on a locked joint, angle mode on a free one')
+    reference = np.ascontiguousarray(reference, dtype=float)
+    gains = np.ascontiguousarray(np.atleast_2d(gain_candidates), dtype=float)
+    noise = sensor.noise_std * np.random.default_rng(seed).standard_normal((len(reference), 2))
+    truth, estimate, commands = closed_loop_kernel(
+        np.asarray(x0, dtype=float), reference, mode == 'torque', noise, plant.h,
+        plant.params_array, estimator_model.params_array, plant.valve_map.u,
+        plant.valve_map.alpha, plant.friction_code, plant.force_code, plant.locked,
+        np.diag(tuning.Q), np.diag(tuning.R), np.diag(tuning.P0), gains, limits.beta,
+        limits.u_min, limits.u_max, ANTI_WINDUP.index(anti_windup), tracking_time,
+        sensor.resolution, sensor.range_min, sensor.range_max)
+    t = np.arange(len(reference)) * plant.h
+    return [ClosedLoopRun(t, reference, truth[c], estimate[c], commands[c], tuple(gains[c]))
+            for c in range(len(gains))]

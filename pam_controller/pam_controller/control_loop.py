@@ -1,0 +1,90 @@
+"""ControlLoop: what pi_node does with each message, with no ROS in it.
+
+Holds the reference (mode ANGLE in rad or TORQUE in N m), one PI controller per mode, the
+enable flag and the last feedback stamp. on_feedback(value, stamp_ns) gives the valve command:
+dt comes from consecutive feedback stamps (a dt <= 0 or > dt_max does not update the integral);
+when disabled, or before any reference, the command is the safe value. A new reference mode
+resets the integral of the new mode.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from .pi import PiController, PiGains, PiOutput
+
+ANGLE, TORQUE = 0, 1           # pam_interfaces/Reference constants
+MODE_NAMES = {ANGLE: 'angle', TORQUE: 'torque'}
+
+
+class LoopOutput(NamedTuple):
+    u1: float
+    u2: float
+    error: float
+    p_term: float
+    i_term: float
+    saturated: bool
+    active: bool               # False: the safe command (disabled, no reference, bad feedback)
+
+
+class ControlLoop:
+    """Angle and torque PI loops; the feedback must match the reference's mode."""
+
+    def __init__(self, angle_gains: PiGains, torque_gains: PiGains, anti_windup='conditional',
+                 tracking_time=0.1, dt_max=0.1, safe_command=(5.5, 5.5), mode=ANGLE,
+                 reference: float | None = 0.0, enabled: bool = True):
+        self.controllers = {ANGLE: PiController(angle_gains, anti_windup, tracking_time, dt_max),
+                            TORQUE: PiController(torque_gains, anti_windup, tracking_time,
+                                                 dt_max)}
+        self.safe_command = tuple(float(u) for u in safe_command)
+        self.mode = mode
+        self.reference = reference
+        self.enabled = enabled
+        self.last_stamp_ns: int | None = None
+        self.bad_dt = 0
+        self.bad_feedback = 0
+
+    @property
+    def controller(self) -> PiController:
+        return self.controllers[self.mode]
+
+    def set_reference(self, mode: int, value: float) -> str:
+        """Accept a reference; returns a message if it was refused or changed the mode."""
+        if mode not in MODE_NAMES:
+            return f'reference mode {mode} unknown (0 angle, 1 torque): ignored'
+        if not math.isfinite(value):
+            return f'reference value {value} not finite: ignored'
+        message = ''
+        if mode != self.mode:
+            message = f'mode {MODE_NAMES[self.mode]} -> {MODE_NAMES[mode]}: integral reset'
+            self.mode = mode
+            self.controller.reset()
+        self.reference = float(value)
+        return message
+
+    def set_enabled(self, enabled: bool) -> None:
+        if enabled and not self.enabled:
+            self.controller.reset()
+            self.last_stamp_ns = None
+        self.enabled = enabled
+
+    def safe_output(self) -> LoopOutput:
+        return LoopOutput(*self.safe_command, 0.0, 0.0, 0.0, False, False)
+
+    def on_feedback(self, value: float, stamp_ns: int) -> LoopOutput:
+        """One control step for a feedback sample (rad or N m, per the current mode)."""
+        if not math.isfinite(value):
+            self.bad_feedback += 1
+            return self.safe_output()
+        if not self.enabled or self.reference is None:
+            self.last_stamp_ns = stamp_ns
+            return self.safe_output()
+        dt = 0.0 if self.last_stamp_ns is None else (stamp_ns - self.last_stamp_ns) * 1e-9
+        if self.last_stamp_ns is not None and not 0.0 < dt <= self.controller.dt_max:
+            self.bad_dt += 1
+        if self.last_stamp_ns is None or stamp_ns > self.last_stamp_ns:
+            self.last_stamp_ns = stamp_ns
+        error = self.reference - value
+        out: PiOutput = self.controller.step(error, dt)
+        return LoopOutput(out.u1, out.u2, error, out.p_term, out.i_term, out.saturated, True)

@@ -1,0 +1,113 @@
+"""The PI law of MODEL.md section 7, antagonistic, with saturation and anti-windup (no ROS).
+
+    e = reference - feedback
+    v = Kp e + I,  I = the integral TERM (V), I <- I + Ki e dt
+    u1 = beta + v,  u2 = beta - v,  each saturated to [u_min, u_max]
+
+Storing the integral term I (V) rather than the integral of e means a run-time change of Ki
+changes only future increments: the output does not jump. Anti-windup while saturated:
+conditional integration (the integral is frozen while the output is saturated and the error
+pushes further into saturation) or back-calculation (the integral is pulled back by
+(v_sat - v) dt / T_t). dt comes from the feedback stamps; a dt <= 0 or > dt_max leaves the
+state unchanged (the output is still computed). Units: e in rad (angle mode) or N m (torque
+mode); Kp in V per unit of e, Ki in V per unit of e per second; u, v, I in V.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from numba import njit
+
+ANTI_WINDUP = ('conditional', 'back_calculation')
+
+
+class PiGains(NamedTuple):
+    """Gains and limits of one mode."""
+
+    kp: float              # V per rad (angle) or per N m (torque)
+    ki: float              # V per rad s or per N m s
+    beta: float = 5.5      # V, bias of both valves
+    u_min: float = 0.0     # V
+    u_max: float = 10.0    # V
+
+
+class PiOutput(NamedTuple):
+    u1: float
+    u2: float
+    p_term: float
+    i_term: float          # the integral term after this step (V)
+    saturated: bool
+
+
+@njit(cache=True)
+def differential_limits(beta, u_min, u_max):
+    """Range [v_lo, v_hi] of the differential v keeping both u1 = beta + v and u2 = beta - v
+    inside [u_min, u_max]."""
+    return max(u_min - beta, beta - u_max), min(u_max - beta, beta - u_min)
+
+
+@njit(cache=True)
+def pi_step(e, dt, i_term, kp, ki, beta, u_min, u_max, anti_windup, tracking_time, dt_max):
+    """One PI step. Returns (u1, u2, p_term, i_term_new, saturated).
+
+    anti_windup: 0 conditional integration, 1 back-calculation with time constant
+    tracking_time (s). dt (s) outside (0, dt_max] freezes the integral.
+    """
+    p_term = kp * e
+    v = p_term + i_term
+    v_lo, v_hi = differential_limits(beta, u_min, u_max)
+    v_sat = min(max(v, v_lo), v_hi)
+    saturated = v_sat != v
+    if 0.0 < dt <= dt_max:
+        if anti_windup == 0:
+            pushing_further = (v > v_hi and e > 0.0) or (v < v_lo and e < 0.0)
+            if not pushing_further:
+                i_term = i_term + ki * e * dt
+        else:
+            i_term = i_term + (ki * e + (v_sat - v) / tracking_time) * dt
+    return beta + v_sat, beta - v_sat, p_term, i_term, saturated
+
+
+class PiController:
+    """A PI controller with state: step(e, dt) -> PiOutput. Gains may change at any time."""
+
+    def __init__(self, gains: PiGains, anti_windup: str = 'conditional',
+                 tracking_time: float = 0.1, dt_max: float = 0.1):
+        validate_gains(gains)
+        if anti_windup not in ANTI_WINDUP:
+            raise ValueError(f'anti_windup must be one of {ANTI_WINDUP}, got {anti_windup!r}')
+        if not (tracking_time > 0.0 and dt_max > 0.0):
+            raise ValueError('tracking_time and dt_max must be > 0 s')
+        self.gains = gains
+        self.anti_windup = anti_windup
+        self.tracking_time = float(tracking_time)
+        self.dt_max = float(dt_max)
+        self.i_term = 0.0
+
+    def reset(self) -> None:
+        self.i_term = 0.0
+
+    def step(self, e: float, dt: float) -> PiOutput:
+        g = self.gains
+        u1, u2, p, i, sat = pi_step(float(e), float(dt), self.i_term, g.kp, g.ki, g.beta,
+                                    g.u_min, g.u_max, ANTI_WINDUP.index(self.anti_windup),
+                                    self.tracking_time, self.dt_max)
+        self.i_term = i
+        return PiOutput(u1, u2, p, i, bool(sat))
+
+
+def validate_gains(g: PiGains) -> PiGains:
+    """Finite, non-negative gains; u_min <= beta <= u_max within [0, 10] V."""
+    import math
+    for name, value in g._asdict().items():
+        if not math.isfinite(value):
+            raise ValueError(f'{name} must be finite, got {value!r}')
+    if g.kp < 0.0 or g.ki < 0.0:
+        raise ValueError(f'gains must be >= 0, got kp={g.kp!r}, ki={g.ki!r}')
+    if not 0.0 <= g.u_min < g.u_max <= 10.0:
+        raise ValueError(f'need 0 <= u_min < u_max <= 10 V, got u_min={g.u_min!r}, '
+                         f'u_max={g.u_max!r}')
+    if not g.u_min <= g.beta <= g.u_max:
+        raise ValueError(f'beta must lie in [u_min, u_max], got {g.beta!r}')
+    return g

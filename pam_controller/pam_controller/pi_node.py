@@ -1,0 +1,271 @@
+"""pi_node: sensor-less PI control of the joint angle or torque, a thin wrapper over ControlLoop.
+
+Run `pi_node --help` for the parameters. Topics resolve under the node namespace ('/pam'):
+
+    estimate          pam_interfaces/JointEstimate     subscribed: the feedback (default)
+    joint_measured    pam_interfaces/JointMeasurement  subscribed instead when feedback:=measured
+                                                       (comparison runs only)
+    reference         pam_interfaces/Reference         subscribed: mode ANGLE (rad) / TORQUE (N m)
+    valve_command     pam_interfaces/ValveCommand      published once per feedback sample, with
+                                                       the feedback's stamp
+    controller_state  pam_interfaces/ControllerState   published with every command
+    /diagnostics      diagnostic_msgs/DiagnosticArray  about 1 Hz
+Service ~/enable (std_srvs/SetBool): false sends the valves to safe_command and holds them there.
+No feedback for feedback_timeout s (wall clock) also sends safe_command, and /diagnostics says
+so. Gains, limits and the anti-windup scheme can be changed at run time (ros2 param set); bad
+values (negative, NaN, u_min >= u_max, beta outside the limits) are rejected.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import rclpy
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import SetBool
+from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement, Reference,
+                                ValveCommand)
+
+from pam_driver.diagnostics import OK, WARN, DiagnosticsPublisher
+from pam_driver.executors import make_executor, spin
+from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_command,
+                                    declare_parameters, merge_overrides, usage_text, wants_help)
+
+from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
+from .pi import ANTI_WINDUP, PiGains, validate_gains
+
+NODE_NAME = 'pi_node'
+DEFAULT_NAMESPACE = '/pam'
+QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                 depth=100)
+GAIN_RANGE = (0.0, 1.0e4)
+RUNTIME = dict(read_only=False)
+
+PARAMETERS = (
+    ParamSpec('mode', 'angle', 'string', '',
+              'Initial mode until a reference says otherwise.', choices=('angle', 'torque')),
+    ParamSpec('initial_reference', 0.0, 'double', 'rad or N m',
+              'Reference used until the first reference message.', range=(-10.0, 10.0)),
+    ParamSpec('kp_angle', 40.0, 'double', 'V/rad', 'Proportional gain, angle mode.',
+              range=GAIN_RANGE, **RUNTIME),
+    ParamSpec('ki_angle', 50.0, 'double', 'V/(rad s)', 'Integral gain, angle mode.',
+              range=GAIN_RANGE, **RUNTIME),
+    ParamSpec('kp_torque', 6.0, 'double', 'V/(N m)', 'Proportional gain, torque mode.',
+              range=GAIN_RANGE, **RUNTIME),
+    ParamSpec('ki_torque', 8.0, 'double', 'V/(N m s)', 'Integral gain, torque mode.',
+              range=GAIN_RANGE, **RUNTIME),
+    ParamSpec('beta', 5.5, 'double', 'V', 'Bias voltage of both valves.', range=(0.0, 10.0),
+              **RUNTIME),
+    ParamSpec('u_min', 0.0, 'double', 'V', 'Lower output limit.', range=(0.0, 10.0), **RUNTIME),
+    ParamSpec('u_max', 10.0, 'double', 'V', 'Upper output limit.', range=(0.0, 10.0), **RUNTIME),
+    ParamSpec('anti_windup', 'conditional', 'string', '',
+              "'conditional' (freeze the integral while saturated further) or 'back_calculation'.",
+              choices=ANTI_WINDUP, **RUNTIME),
+    ParamSpec('tracking_time', 0.1, 'double', 's', 'Back-calculation time constant.',
+              range=(1e-4, 100.0), **RUNTIME),
+    ParamSpec('dt_max', 0.1, 'double', 's',
+              'Largest plausible time between two feedback stamps; a larger (or non-positive) '
+              'step does not update the integral.', range=(1e-4, 10.0)),
+    ParamSpec('feedback', 'estimate', 'string', '',
+              "'estimate' (sensor-less, the UKF's estimate) or 'measured' (joint_measured: "
+              'comparison runs only).', choices=('estimate', 'measured')),
+    ParamSpec('feedback_timeout', 0.1, 'double', 's',
+              'No feedback for this long (wall clock): the valves go to safe_command.',
+              range=(0.001, 60.0)),
+    ParamSpec('safe_command', [5.5, 5.5], 'double[]', 'V',
+              'Valve voltages when disabled or without feedback: by default both valves at beta '
+              '(equal co-contraction, the joint rests near 0 deg).'),
+    ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),
+)
+SUMMARY = [
+    'Sensor-less PI controller (pam_controller): u1 = beta + Kp e + I, u2 = beta - Kp e - I on',
+    'the estimate, saturated to [u_min, u_max] with anti-windup. Default namespace /pam.',
+    '  subscribes  estimate (JointEstimate) or joint_measured, reference (Reference)',
+    '  publishes   valve_command (ValveCommand), controller_state (ControllerState), /diagnostics',
+    'Service ~/enable (std_srvs/SetBool).',
+]
+
+
+def gains_from(values: dict, mode: str) -> PiGains:
+    return PiGains(values[f'kp_{mode}'], values[f'ki_{mode}'], values['beta'], values['u_min'],
+                   values['u_max'])
+
+
+def build_loop(values: dict) -> ControlLoop:
+    """ConfigError naming the problem if the gains or limits are not usable."""
+    try:
+        gains = {mode: validate_gains(gains_from(values, mode)) for mode in ('angle', 'torque')}
+    except ValueError as exc:
+        raise ConfigError(f'gains/limits: {exc}') from exc
+    safe = check_command('safe_command', values['safe_command'])
+    return ControlLoop(gains['angle'], gains['torque'], values['anti_windup'],
+                       values['tracking_time'], values['dt_max'], safe,
+                       ANGLE if values['mode'] == 'angle' else TORQUE,
+                       values['initial_reference'], values['enabled'])
+
+
+class PiNode(Node):
+    """One valve command per feedback sample."""
+
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        self.values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
+                                                            declare_parameters(self, PARAMETERS)))
+        self.loop = build_loop(self.values)
+        self.command_pub = self.create_publisher(ValveCommand, 'valve_command', QOS)
+        self.state_pub = self.create_publisher(ControllerState, 'controller_state', QOS)
+        if self.values['feedback'] == 'estimate':
+            self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
+        else:
+            self.create_subscription(JointMeasurement, 'joint_measured', self._on_measured, QOS)
+            self.get_logger().warn('feedback from joint_measured: a comparison run, not '
+                                   'sensor-less control')
+        self.create_subscription(Reference, 'reference', self._on_reference, QOS)
+        self.create_service(SetBool, '~/enable', self._on_enable)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: PI controller',
+                                                'pam-pi', self._report)
+        self.create_timer(0.05, self._watchdog)
+        self._last_feedback = None            # monotonic time of the last feedback
+        self._stale = False
+        self.commands = 0
+        self.saturated = 0
+        self.get_logger().info(
+            f"{MODE_NAMES[self.loop.mode]} mode, feedback {self.values['feedback']}; gains angle "
+            f"kp {self.values['kp_angle']:g} V/rad ki {self.values['ki_angle']:g} V/(rad s), "
+            f"torque kp {self.values['kp_torque']:g} V/(N m) ki {self.values['ki_torque']:g} "
+            f"V/(N m s); beta {self.values['beta']:g} V, limits [{self.values['u_min']:g}, "
+            f"{self.values['u_max']:g}] V, anti-windup {self.values['anti_windup']}; "
+            f"{'enabled' if self.loop.enabled else 'disabled'}")
+
+    # --- messages -------------------------------------------------------------------------------
+    def _on_estimate(self, msg: JointEstimate) -> None:
+        value = msg.angle if self.loop.mode == ANGLE else msg.torque
+        self._control(value, msg.header)
+
+    def _on_measured(self, msg: JointMeasurement) -> None:
+        value = msg.angle if self.loop.mode == ANGLE else msg.torque
+        self._control(value, msg.header)
+
+    def _control(self, value: float, header) -> None:
+        self._last_feedback = time.monotonic()
+        if self._stale:
+            self._stale = False
+            self.get_logger().info('feedback is back: control resumed')
+        out = self.loop.on_feedback(value, header.stamp.sec * 1_000_000_000 + header.stamp.nanosec)
+        self._publish(out, header.stamp, value)
+
+    def _publish(self, out, stamp, feedback: float) -> None:
+        command = ValveCommand(u1=out.u1, u2=out.u2)
+        command.header.stamp = stamp
+        command.header.frame_id = 'pam_joint'
+        self.command_pub.publish(command)
+        state = ControllerState(mode=self.loop.mode, reference=float(self.loop.reference or 0.0),
+                                feedback=float(feedback) if math.isfinite(feedback) else 0.0,
+                                error=out.error, p_term=out.p_term, i_term=out.i_term,
+                                u1=out.u1, u2=out.u2, saturated=out.saturated)
+        state.header = command.header
+        self.state_pub.publish(state)
+        self.commands += 1
+        self.saturated += int(out.saturated)
+
+    def _on_reference(self, msg: Reference) -> None:
+        message = self.loop.set_reference(msg.mode, msg.value)
+        if message.startswith('mode'):
+            self.get_logger().info(message)
+        elif message:
+            self.get_logger().warn(message)
+
+    def _on_enable(self, request, response):
+        self.loop.set_enabled(request.data)
+        response.success = True
+        response.message = 'control enabled' if request.data else \
+            f'control disabled: valves at safe_command {list(self.loop.safe_command)} V'
+        self.get_logger().info(response.message)
+        if not request.data:
+            self._publish(self.loop.safe_output(), self.get_clock().now().to_msg(), math.nan)
+        return response
+
+    def _watchdog(self) -> None:
+        if self._last_feedback is None or self._stale:
+            return
+        if time.monotonic() - self._last_feedback > self.values['feedback_timeout']:
+            self._stale = True
+            self.get_logger().warn(
+                f"no feedback for {self.values['feedback_timeout']:g} s: valves to safe_command "
+                f'{list(self.loop.safe_command)} V')
+            self._publish(self.loop.safe_output(), self.get_clock().now().to_msg(), math.nan)
+
+    # --- run-time parameters ----------------------------------------------------------------------
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        proposed = dict(self.values)
+        for p in params:
+            proposed[p.name] = p.value
+        try:
+            proposed = check_all(PARAMETERS, proposed)
+            loop_check = {mode: validate_gains(gains_from(proposed, mode))
+                          for mode in ('angle', 'torque')}
+        except (ValueError, TypeError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        for mode, code in (('angle', ANGLE), ('torque', TORQUE)):
+            controller = self.loop.controllers[code]
+            controller.gains = loop_check[mode]
+            controller.anti_windup = proposed['anti_windup']
+            controller.tracking_time = proposed['tracking_time']
+        self.values = proposed
+        self.get_logger().info('parameters changed: ' + ', '.join(
+            f'{p.name}={p.value}' for p in params))
+        return SetParametersResult(successful=True)
+
+    def _report(self):
+        age = (time.monotonic() - self._last_feedback) if self._last_feedback else math.inf
+        values = {'mode': MODE_NAMES[self.loop.mode], 'enabled': self.loop.enabled,
+                  'reference': self.loop.reference if self.loop.reference is not None else 'none',
+                  'commands published': self.commands, 'saturated commands': self.saturated,
+                  'integral term (V)': self.loop.controller.i_term,
+                  'time since feedback (s)': age, 'implausible dt (skipped)': self.loop.bad_dt,
+                  'non-finite feedback': self.loop.bad_feedback,
+                  'feedback source': self.values['feedback']}
+        if not self.loop.enabled:
+            return WARN, 'disabled: valves at safe_command', values
+        if self._last_feedback is None:
+            return WARN, 'waiting for feedback', values
+        if self._stale:
+            return WARN, f'no feedback for {age:.2f} s: valves at safe_command', values
+        return OK, 'controlling', values
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+            f'{NODE_NAME} --ros-args -p mode:=torque -p kp_torque:=3.0',
+            'ros2 param set /pam/pi_node kp_angle 30.0']))
+        return 0
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PiNode()
+        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
+        executor.add_node(node)
+        spin(executor)
+    except ConfigError as exc:
+        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,146 @@
+"""reference_node: publishes a built-in reference profile on `reference` (pam_interfaces/Reference).
+
+Profiles (time t from the node's first tick, on the node clock: simulated time with
+use_sim_time):
+    steps     paper-style steps within +-amplitude, held `hold` s each, from `seed`
+              (pam_model.profiles.step_reference_profile; the first hold is at 0)
+    ramp      triangle between -amplitude and +amplitude with period `period`
+    sine      amplitude sin(2 pi t / period)
+    constant  offset
+Every profile adds `offset`. mode 'angle' values are in rad, 'torque' in N m. After `duration`
+the profile repeats if `repeat`, else holds its last value. Run `reference_node --help`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from pam_interfaces.msg import Reference
+
+from pam_driver.executors import make_executor, spin
+from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters, fail,
+                                    merge_overrides, usage_text, wants_help)
+
+NODE_NAME = 'reference_node'
+DEFAULT_NAMESPACE = '/pam'
+QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                 depth=10)
+PROFILES = ('steps', 'ramp', 'sine', 'constant')
+LIMITS = {'angle': math.radians(25.0), 'torque': 3.0}   # the rig's envelope (MODEL.md sec. 1)
+
+PARAMETERS = (
+    ParamSpec('mode', 'angle', 'string', '', 'angle (rad) or torque (N m).',
+              choices=('angle', 'torque')),
+    ParamSpec('profile', 'steps', 'string', '', 'Reference profile.', choices=PROFILES),
+    ParamSpec('amplitude', math.radians(20.0), 'double', 'rad or N m',
+              'Largest excursion (steps: levels within +-amplitude).', range=(0.0, 10.0)),
+    ParamSpec('offset', 0.0, 'double', 'rad or N m', 'Added to every profile.',
+              range=(-10.0, 10.0)),
+    ParamSpec('hold', 8.0, 'double', 's', 'steps: duration of each level.', range=(0.1, 3600.0)),
+    ParamSpec('period', 10.0, 'double', 's', 'ramp and sine: period.', range=(0.1, 3600.0)),
+    ParamSpec('duration', 64.0, 'double', 's', 'Length of the profile.', range=(0.1, 86400.0)),
+    ParamSpec('repeat', False, 'bool', '', 'Start over after duration (else hold the last value).'),
+    ParamSpec('seed', 0, 'integer', '', 'steps: seed of the levels.', range=(0, 2 ** 31 - 1)),
+    ParamSpec('rate', 100.0, 'double', 'Hz', 'Publishing rate.', range=(0.1, 1000.0)),
+)
+SUMMARY = ['Reference profiles for pi_node (pam_controller): publishes reference '
+           '(pam_interfaces/Reference) at `rate`. Default namespace /pam.']
+
+
+def profile_value(values: dict, steps: np.ndarray | None, t: float) -> float:
+    """The reference (rad or N m) at time t (s) of the configured profile."""
+    duration = values['duration']
+    if t >= duration:
+        t = t % duration if values['repeat'] else duration - 1e-9
+    a, kind = values['amplitude'], values['profile']
+    if kind == 'steps':
+        value = steps[min(int(t / values['hold']), len(steps) - 1)]
+    elif kind == 'ramp':
+        phase = (t / values['period']) % 1.0
+        value = a * (1.0 - 4.0 * abs(phase - 0.5)) * -1.0
+    elif kind == 'sine':
+        value = a * math.sin(2.0 * math.pi * t / values['period'])
+    else:
+        value = 0.0
+    return float(value) + values['offset']
+
+
+def step_levels(values: dict) -> np.ndarray:
+    """The levels of the steps profile, one per hold."""
+    from pam_model.profiles import ANGLE_STEP_MAX, TORQUE_STEP_MAX, step_reference_profile
+    ref = step_reference_profile(values['mode'], values['seed'], values['duration'],
+                                 values['hold'], Ts=values['hold'])
+    limit = ANGLE_STEP_MAX if values['mode'] == 'angle' else TORQUE_STEP_MAX
+    return ref.value * (values['amplitude'] / limit)
+
+
+def check_values(values: dict) -> dict:
+    check_all(PARAMETERS, values)
+    limit = LIMITS[values['mode']]
+    if values['amplitude'] + abs(values['offset']) > limit:
+        fail('amplitude', f"amplitude + |offset| exceeds the rig's envelope {limit:g} "
+                          f"({'rad' if values['mode'] == 'angle' else 'N m'})")
+    return values
+
+
+class ReferenceNode(Node):
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        self.values = check_values(merge_overrides(PARAMETERS,
+                                                   declare_parameters(self, PARAMETERS)))
+        self.mode = Reference.ANGLE if self.values['mode'] == 'angle' else Reference.TORQUE
+        self.steps = step_levels(self.values) if self.values['profile'] == 'steps' else None
+        self.publisher = self.create_publisher(Reference, 'reference', QOS)
+        self.start = None
+        self.create_timer(1.0 / self.values['rate'], self._tick)
+        unit = 'rad' if self.mode == Reference.ANGLE else 'N m'
+        self.get_logger().info(
+            f"{self.values['profile']} profile, {self.values['mode']} mode, amplitude "
+            f"{self.values['amplitude']:g} {unit}, offset {self.values['offset']:g} {unit}, "
+            f"{self.values['duration']:g} s{' repeated' if self.values['repeat'] else ''}, "
+            f"on {self.resolve_topic_name('reference')} at {self.values['rate']:g} Hz")
+
+    def _tick(self) -> None:
+        now = self.get_clock().now()
+        if self.start is None:
+            self.start = now
+        t = (now - self.start).nanoseconds * 1e-9
+        msg = Reference(mode=self.mode, value=profile_value(self.values, self.steps, t))
+        msg.header.stamp = now.to_msg()
+        self.publisher.publish(msg)
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+            f'{NODE_NAME} --ros-args -p mode:=torque -p amplitude:=2.0 -p profile:=steps']))
+        return 0
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ReferenceNode()
+        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
+        executor.add_node(node)
+        spin(executor)
+    except ConfigError as exc:
+        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,128 @@
+"""The PI maths: law, saturation, anti-windup, dt guards, gain validation; ControlLoop; metrics;
+and the sensor-less loop on the batch simulator against the acceptance targets."""
+
+import math
+
+import numpy as np
+import pytest
+
+from pam_controller.closed_loop import simulate_closed_loop
+from pam_controller.control_loop import ANGLE, TORQUE, ControlLoop
+from pam_controller.pi import PiController, PiGains, differential_limits, validate_gains
+from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
+from pam_model.mismatch import load_scenario
+from pam_model.model import PamModel
+from pam_model.parameters import load_parameters
+
+G = PiGains(kp=10.0, ki=5.0)
+
+
+def test_law_is_antagonistic_about_beta():
+    pi = PiController(G)
+    out = pi.step(0.1, 0.001)                 # the output uses the integral up to k-1
+    assert out.p_term == pytest.approx(1.0)
+    assert out.i_term == pytest.approx(5.0 * 0.1 * 0.001)
+    assert out.u1 == pytest.approx(5.5 + 1.0)
+    out = pi.step(0.1, 0.001)
+    assert out.u1 == pytest.approx(5.5 + 1.0 + 0.0005)
+    assert out.u1 + out.u2 == pytest.approx(11.0) and not out.saturated
+
+
+def test_saturation_keeps_both_valves_in_range():
+    assert differential_limits(5.5, 0.0, 10.0) == (-4.5, 4.5)
+    out = PiController(G).step(2.0, 0.001)                # v = 20 V -> 4.5 V
+    assert (out.u1, out.u2, out.saturated) == (10.0, 1.0, True)
+    out = PiController(PiGains(10.0, 0.0, beta=5.0, u_min=1.0, u_max=9.0)).step(-1.0, 0.001)
+    assert (out.u1, out.u2) == (1.0, 9.0)
+
+
+@pytest.mark.parametrize('scheme', ['conditional', 'back_calculation'])
+def test_anti_windup_bounds_the_integral_while_saturated(scheme):
+    pi = PiController(G, anti_windup=scheme, tracking_time=0.05)
+    for _ in range(5000):                                  # 5 s saturated
+        pi.step(1.0, 0.001)
+    held = pi.i_term
+    for _ in range(5000):                                  # 5 s more: no further growth
+        pi.step(1.0, 0.001)
+    assert abs(pi.i_term) < 6.0 and pi.i_term == pytest.approx(held, abs=1e-6)
+    out = pi.step(-0.05, 0.001)                            # the error changes sign
+    assert not out.saturated or out.u1 < 10.0              # recovers at once: no windup overshoot
+
+
+def test_without_saturation_both_schemes_integrate_alike():
+    a, b = PiController(G, 'conditional'), PiController(G, 'back_calculation')
+    for e in np.linspace(-0.1, 0.1, 50):
+        assert a.step(e, 0.001) == pytest.approx(b.step(e, 0.001))
+
+
+@pytest.mark.parametrize('dt', [0.0, -0.001, 0.5, math.nan])
+def test_implausible_dt_freezes_the_integral(dt):
+    pi = PiController(G, dt_max=0.1)
+    pi.step(0.1, 0.001)
+    before = pi.i_term
+    out = pi.step(0.1, dt)
+    assert pi.i_term == before and out.p_term == pytest.approx(1.0)
+
+
+def test_changing_ki_causes_no_jump():
+    pi = PiController(G)
+    for _ in range(100):
+        pi.step(0.1, 0.001)
+    before = pi.step(0.1, 0.0)                              # no time elapsed: no increment
+    pi.gains = G._replace(ki=500.0)
+    after = pi.step(0.1, 0.0)
+    assert after.u1 == before.u1 and after.i_term == before.i_term
+
+
+@pytest.mark.parametrize('gains', [PiGains(-1.0, 1.0), PiGains(1.0, math.nan),
+                                   PiGains(1.0, 1.0, u_min=6.0, u_max=5.0),
+                                   PiGains(1.0, 1.0, beta=11.0, u_max=10.0),
+                                   PiGains(1.0, 1.0, u_min=-1.0)])
+def test_bad_gains_are_rejected(gains):
+    with pytest.raises(ValueError):
+        validate_gains(gains)
+
+
+def test_control_loop_modes_enable_and_stamps():
+    loop = ControlLoop(G, PiGains(2.0, 1.0), reference=0.1)
+    out = loop.on_feedback(0.0, 1_000_000)
+    assert out.active and out.error == pytest.approx(0.1)
+    assert loop.set_reference(TORQUE, 1.0).startswith('mode angle -> torque')
+    assert loop.controller.i_term == 0.0
+    assert loop.on_feedback(0.5, 2_000_000).p_term == pytest.approx(1.0)
+    loop.on_feedback(0.5, 1_500_000)                        # stamp from the past: dt < 0
+    assert loop.bad_dt == 1
+    assert 'not finite' in loop.set_reference(ANGLE, math.nan)
+    assert not loop.on_feedback(math.nan, 3_000_000).active
+    loop.set_enabled(False)
+    out = loop.on_feedback(0.5, 4_000_000)
+    assert not out.active and (out.u1, out.u2) == (5.5, 5.5)
+
+
+def test_step_report_metrics():
+    t = np.arange(0, 16.0, 0.001)
+    reference = np.where(t < 8.0, 0.0, 0.2)
+    y = np.where(t < 8.0, 0.0, 0.2 * (1 - np.exp(-(t - 8.0) / 0.3)) + 0.004)
+    report = step_report(t, reference, y, ANGLE_SPAN)
+    assert len(report.steps) == 2
+    second = report.steps[1]
+    assert second.steady_error == pytest.approx(100 * 0.004 / ANGLE_SPAN, rel=1e-3)
+    assert 0.3 < second.settling_time < 1.0 and second.overshoot == pytest.approx(2.0, rel=1e-2)
+
+
+@pytest.mark.parametrize('mode, span, target, gains', [
+    ('angle', ANGLE_SPAN, 3.0, (40.0, 50.0)), ('torque', TORQUE_SPAN, 3.5, (6.0, 8.0))])
+def test_default_gains_meet_the_targets_on_the_batch_loop(mode, span, target, gains):
+    """Steps of 8 s on the 'mild' plant with its sensor, UKF feedback (nominal model)."""
+    scenario = load_scenario('mild')
+    locked = mode == 'torque'
+    level = 0.25 if mode == 'angle' else 1.5
+    t = np.arange(24000) * 1e-3
+    reference = np.select([t < 8.0, t < 16.0], [0.0, level], -0.6 * level)
+    run, = simulate_closed_loop(PamModel(params=scenario.apply(load_parameters()),
+                                         locked=locked), PamModel(locked=locked), reference,
+                                [gains], sensor=scenario.sensor, mode=mode, seed=3)
+    report = run.report(span, 2.0)
+    assert report.worst_error <= target
+    assert report.worst_settling <= 3.0 and report.worst_ripple < 1.0
+    assert report.worst_overshoot < 25.0
