@@ -81,8 +81,9 @@ class ControlLoop:
             self.last_stamp_ns = stamp_ns
             return self.safe_output()
         dt = 0.0 if self.last_stamp_ns is None else (stamp_ns - self.last_stamp_ns) * 1e-9
-        if self.last_stamp_ns is not None and not 0.0 < dt <= self.controller.dt_max:
-            self.bad_dt += 1
+        if self.last_stamp_ns is not None and stamp_ns != self.last_stamp_ns and not (
+                0.0 < dt <= self.controller.dt_max):
+            self.bad_dt += 1      # a repeated stamp (a re-published sample) is not implausible
         if self.last_stamp_ns is None or stamp_ns > self.last_stamp_ns:
             self.last_stamp_ns = stamp_ns
         error = self.reference - value

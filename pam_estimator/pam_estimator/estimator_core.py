@@ -3,7 +3,9 @@
 * a valve command (V) is held as u(k-1) for the next pressure sample (non-finite voltages read as
   0 V, out-of-range ones are clipped: the valves do the same);
 * a pressure sample (Pa abs, stamp in ns) advances the filter one step and yields an estimate;
-  a sample whose stamp equals the last one is a duplicate (ignored, counted); a stamp older than
+  a sample whose stamp equals the last one is a duplicate (a lockstep simulator re-publishing
+  its sample for a late joiner): the filter does not step, the last estimate is given again
+  (so a controller that missed it can answer), counted; a stamp older than
   the last one means time went backwards (a bag looping, a simulator restarted): the filter is
   reset to its initial state and covariance, then the sample is processed;
 * statistics for the diagnostics: input rate, step time, NIS, covariance trace, rejections.
@@ -27,7 +29,8 @@ RATE_WINDOW = 1000          # samples over which the input rate and step times a
 
 @dataclass
 class CoreEvent:
-    """What happened to one pressure sample: 'estimate', 'duplicate' or 'reset'."""
+    """What happened to one pressure sample: 'estimate', 'duplicate' (output: the last estimate,
+    again) or 'reset'."""
 
     kind: str
     output: UkfOutput | None = None
@@ -77,7 +80,8 @@ class EstimatorCore:
         if self.last_stamp_ns is not None:
             if stamp_ns == self.last_stamp_ns:
                 self.duplicates += 1
-                return CoreEvent('duplicate', message='duplicate stamp: sample ignored')
+                return CoreEvent('duplicate', self.last_output,
+                                 'duplicate stamp: last estimate repeated')
             if stamp_ns < self.last_stamp_ns:
                 self.time_resets += 1
                 back = (self.last_stamp_ns - stamp_ns) * 1e-9

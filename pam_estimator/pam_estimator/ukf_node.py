@@ -90,7 +90,7 @@ class UkfNode(Node):
     def _on_pressures(self, msg: Pressures) -> None:
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns)
-        if event.kind == 'duplicate':
+        if event.output is None:
             return
         if event.kind == 'reset':
             self.get_logger().warn(event.message)
@@ -131,7 +131,7 @@ class UkfNode(Node):
             'time since last pressure sample (s)': age,
             'largest input gap (ms)': core.largest_input_gap() * 1e3,
             'samples estimated': core.samples,
-            'duplicate samples ignored': core.duplicates,
+            'duplicate samples (estimate repeated)': core.duplicates,
             'resets on time going backwards': core.time_resets,
             'valve commands received': core.commands,
             'bad valve commands': core.bad_commands,

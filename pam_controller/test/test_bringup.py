@@ -1,0 +1,186 @@
+"""pam-bringup: the stack as separate processes from one params file (pam_controller.bringup).
+
+Real runs on this module's ROS domain: the rig + estimator for a fixed duration (estimates at
+about 1 kHz, prefixed logs, the default params file's sections picked), SIGTERM stops every
+child, a child that dies makes pam-bringup fail naming it, a missing driver_node is a clear
+error, and the full stack (with pi_node and reference_node) runs closed loop at 1 kHz until a
+Ctrl-C (SIGINT) stops it cleanly.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from pam_interfaces.msg import JointEstimate, ValveCommand
+
+from pam_controller.bringup import (_key_pattern, default_params_file, find_executable,
+                                    section_keys, sections_for)
+from pam_driver.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, child_env, executable
+
+WINDOW = 1.5        # s, rate measurement window
+SETTLE = 0.5        # s, after the first message, before the window
+DURATION = 10.0     # s, --duration of the timed run (start-up under load takes up to ~6 s)
+MIN_RATE = 800.0    # Hz
+STARTED = re.compile(r'started (\w+) \(.*?\), pid (\d+):')
+
+
+def bringup(node_process, ros_domain, *args):
+    return node_process('pam-bringup', 'pam_controller', '--domain-id', str(ros_domain), *args,
+                        raw=True)
+
+
+def started_pids(output: str) -> dict[str, int]:
+    return {name: int(pid) for name, pid in STARTED.findall(output)}
+
+
+def process_exists(pid: int, name: str) -> bool:
+    """True if pid is (still) a process running the executable `name`."""
+    try:
+        cmdline = Path(f'/proc/{pid}/cmdline').read_bytes()
+    except OSError:
+        return False
+    return name.encode() in cmdline
+
+
+def rate_over_window(collector, window: float = WINDOW) -> float:
+    time.sleep(SETTLE)
+    t0 = time.monotonic()
+    time.sleep(window)
+    return len(collector.since(t0)) / window
+
+
+# A node leaving rclpy's EventsExecutor while a message is being delivered can raise this from
+# pam_driver.executors.spin() and exit 1 (seen about once in 8 full-stack stops); pam-bringup
+# rightly reports it. Known node-side issue, not pam-bringup's: expected to fail, by signature.
+EVENTS_SHUTDOWN_RACE = "RuntimeError: Unable to convert call argument '0' to Python object"
+
+
+def assert_clean_exit(code: int, output: str) -> None:
+    if code != 0 and EVENTS_SHUTDOWN_RACE in output and 'did not stop cleanly' in output:
+        pytest.xfail('a node hit the EventsExecutor shutdown race (pam_driver.executors.spin)')
+    assert code == 0, output
+
+
+def prefixed(output: str, name: str) -> list[str]:
+    return re.findall(rf'^\[{name}\]\s+.*$', output, flags=re.MULTILINE)
+
+
+# ---------------------------------------------------------------------------- no ROS graph
+def test_help_exits_0():
+    run = subprocess.run([executable('pam-bringup', 'pam_controller'), '--help'],
+                         capture_output=True, text=True, timeout=30)
+    assert run.returncode == 0, run.stderr
+    for option in ('--params-file', '--rig', '--no-controller', '--no-reference', '--duration',
+                   '--domain-id', '--namespace', '--log-dir'):
+        assert option in run.stdout
+
+
+def test_params_file_sections_follow_rcl_matching():
+    assert _key_pattern('/pam/sim_node').match('/pam/sim_node')
+    assert _key_pattern('pam/sim_node').match('/pam/sim_node')
+    assert _key_pattern('/**').match('/pam/sim_node')
+    assert _key_pattern('/**/sim_node').match('/pam/sim_node')
+    assert _key_pattern('/**/sim_node').match('/sim_node')
+    assert _key_pattern('/pam/*').match('/pam/ukf_node')
+    assert not _key_pattern('sim_node').match('/pam/sim_node')   # means /sim_node
+    assert not _key_pattern('/other/sim_node').match('/pam/sim_node')
+    keys = section_keys(default_params_file())
+    for node in ('sim_node', 'ukf_node', 'pi_node', 'reference_node'):
+        assert sections_for(f'/pam/{node}', keys) == [f'/pam/{node}'], keys
+
+
+def test_missing_driver_node_is_a_clear_error(ros_domain):
+    if find_executable('driver_node', 'pam_driver') is not None:
+        pytest.skip('driver_node exists now: this test is about its absence')
+    run = subprocess.run([executable('pam-bringup', 'pam_controller'), '--rig', 'driver',
+                          '--no-controller', '--no-reference', '--duration', '1'],
+                         capture_output=True, text=True, timeout=30, env=child_env(ros_domain))
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert "executable 'driver_node' of pam_driver not found" in run.stderr
+    assert 'started' not in run.stdout    # nothing was started
+
+
+# ---------------------------------------------------------------------------- real runs
+def test_rig_and_estimator_run_for_duration(node_process, probe, ros_domain, tmp_path):
+    estimates = probe.subscribe(JointEstimate, '/pam/estimate')
+    run = bringup(node_process, ros_domain, '--no-controller', '--no-reference',
+                  '--duration', str(DURATION), '--log-dir', str(tmp_path / 'logs'))
+    run.wait_for(lambda: len(estimates) > 0, DURATION - SETTLE - WINDOW - 0.5,
+                 'the first /pam/estimate')
+    rate = rate_over_window(estimates)
+    assert run.alive(), 'pam-bringup stopped before the end of the rate window'
+    assert rate >= MIN_RATE, f'/pam/estimate at {rate:.0f} Hz'
+
+    code = run.wait_exit(timeout=DURATION + STOP_TIMEOUT + 5.0)
+    out = run.stdout
+    assert_clean_exit(code, out + run.stderr)
+    assert set(started_pids(out)) == {'sim_node', 'ukf_node'}, out
+    assert prefixed(out, 'sim_node') and prefixed(out, 'ukf_node'), out
+    # the default params file (share/pam_controller/config/bringup.yaml) reached its sections
+    assert any("mismatch: 'mild'" in line for line in prefixed(out, 'sim_node')), out
+    assert any('estimating:' in line for line in prefixed(out, 'ukf_node')), out
+    assert 'all nodes stopped cleanly' in out
+    assert "mismatch: 'mild'" in (tmp_path / 'logs' / 'sim_node.log').read_text()
+    assert not (tmp_path / 'logs' / 'sim_node.log').read_text().startswith('[sim_node]')
+
+
+def test_sigterm_stops_every_child(node_process, probe, ros_domain):
+    estimates = probe.subscribe(JointEstimate, '/pam/estimate')
+    run = bringup(node_process, ros_domain, '--no-controller', '--no-reference')
+    run.wait_for(lambda: len(estimates) > 0, STARTUP_TIMEOUT, 'the first /pam/estimate')
+    pids = started_pids(run.stdout)
+    assert set(pids) == {'sim_node', 'ukf_node'}, run.stdout
+    assert all(process_exists(pid, name) for name, pid in pids.items())
+
+    run.proc.send_signal(signal.SIGTERM)
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    assert 'SIGTERM received' in run.stdout
+    assert_clean_exit(code, run.stdout + run.stderr)
+    leftovers = [name for name, pid in pids.items() if process_exists(pid, name)]
+    assert not leftovers, f'still running after pam-bringup exited: {leftovers}'
+
+
+def test_a_child_that_dies_fails_the_bringup(node_process, ros_domain, tmp_path):
+    params = tmp_path / 'bad.yaml'
+    params.write_text('/pam/sim_node:\n  ros__parameters:\n    timing: realtime\n'
+                      '/pam/ukf_node:\n  ros__parameters:\n    joint_mode: wobbly\n')
+    run = bringup(node_process, ros_domain, '--no-controller', '--no-reference',
+                  '--params-file', str(params), '--duration', '30')
+    code = run.wait_exit(timeout=STARTUP_TIMEOUT + STOP_TIMEOUT)
+    out = run.stdout
+    assert code == 1, out + run.stderr
+    assert re.search(r'ukf_node \(pid \d+\) died: exit code 2', out), out
+    assert "parameter 'joint_mode'" in out             # the child's own error, forwarded
+    assert 'failed: ukf_node died' in out
+    pids = started_pids(out)
+    assert not process_exists(pids['sim_node'], 'sim_node'), 'sim_node was not stopped'
+
+
+def test_full_stack_runs_closed_loop_until_ctrl_c(node_process, probe, ros_domain):
+    missing = [name for name in ('pi_node', 'reference_node')
+               if find_executable(name, 'pam_controller') is None
+               or importlib.util.find_spec(f'pam_controller.{name}') is None]
+    if missing:
+        pytest.skip(f'not written yet: {", ".join(missing)} (pam_controller)')
+    commands = probe.subscribe(ValveCommand, '/pam/valve_command')
+    run = bringup(node_process, ros_domain)
+    run.wait_for(lambda: len(commands) > 0, STARTUP_TIMEOUT, 'the first /pam/valve_command')
+    rate = rate_over_window(commands)
+    out = run.stdout
+    assert run.alive() and 'died' not in out, out
+    assert rate >= MIN_RATE, f'/pam/valve_command at {rate:.0f} Hz'
+
+    run.proc.send_signal(signal.SIGINT)   # Ctrl-C
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    out = run.stdout
+    assert 'SIGINT received' in out
+    assert_clean_exit(code, out + run.stderr)
+    assert set(started_pids(out)) == {'sim_node', 'ukf_node', 'reference_node', 'pi_node'}, out
+    for name in ('sim_node', 'ukf_node', 'reference_node', 'pi_node'):
+        assert prefixed(out, name), f'no output of {name}:\n{out}'
