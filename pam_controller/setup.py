@@ -26,6 +26,7 @@ setup(
             'pi_node = pam_controller.pi_node:main',
             'reference_node = pam_controller.reference_node:main',
             'pam-bringup = pam_controller.bringup:main',
+            'tracking_report = pam_controller.tracking_report:main',
         ],
     },
 )

@@ -1,31 +1,36 @@
 #!/usr/bin/env bash
-# The main job (`make demo`): the simulated rig (sim_node, real time at 1 kHz, default parameters)
-# driven open loop through the 130 s validation profile by profile_player, with the sensor-less
-# estimator (ukf_node) running beside it: three separate processes talking over DDS. At the end
-# profile_player prints a summary (rate, missing samples, ranges, online angle-estimate metrics)
-# and the run is saved to out/demo_run.npz (readable by pam-evaluate).
+# The main job (`make demo`): sensor-less angle control of the simulated rig in real time.
+# pam-bringup starts, as separate processes talking over DDS, the simulated rig (sim_node at
+# 1 kHz, the 'mild' mismatched plant with its noisy 12-bit pressure sensors), the UKF (ukf_node,
+# nominal model), the PI controller (pi_node, feedback = the estimate) and reference_node
+# (paper-style angle steps within +-20 deg, 8 s each), from pam_controller/config/bringup.yaml.
+# tracking_report records DURATION seconds, then prints per step the steady-state error against
+# the true (measured) angle and the settling time, the estimation error, and writes a figure like
+# the paper's Fig. 14 to out/demo_tracking.png.
 #
-# Environment: DURATION (s, default 130), ROS_DOMAIN_ID (default: a random free-ish one, so the
-# demo does not talk to other graphs), PAM_DEMO_OUT (default out/demo_run.npz).
-# Expects the venv on PATH and AMENT_PREFIX_PATH set (make demo does both).
+# Environment: DURATION (s, default 64), ROS_DOMAIN_ID (default: a random one in 110..199, so
+# the demo does not talk to other graphs). Expects the venv on PATH and AMENT_PREFIX_PATH set
+# (make demo does both).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
-DURATION="${DURATION:-130}"
-OUT="${PAM_DEMO_OUT:-out/demo_run.npz}"
+DURATION="${DURATION:-64}"
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 90) + 110 ))}"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
-mkdir -p "$(dirname "$OUT")" out/logs
+mkdir -p out/logs
 
-pids=()
-cleanup() {
-  for pid in "${pids[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
-  sleep 1
-  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
-}
+bringup_pid=
+cleanup() { [ -n "$bringup_pid" ] && kill -INT "$bringup_pid" 2>/dev/null && wait "$bringup_pid" || true; }
 trap cleanup EXIT
 
-echo "demo: ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ${DURATION} s of the validation profile; node logs in out/logs/"
-sim_node >out/logs/sim_node.log 2>&1 & pids+=($!)
-ukf_node >out/logs/ukf_node.log 2>&1 & pids+=($!)
-profile_player --ros-args -p "duration:=$(printf %.1f "$DURATION")" -p "save:=$OUT" -p startup_timeout:=90.0 -p wait_for_estimator:=60.0
+echo "demo: ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ${DURATION} s of closed-loop angle tracking; node logs in out/logs/"
+pam-bringup --log-dir out/logs >out/logs/bringup.log 2>&1 &
+bringup_pid=$!
+tracking_report --ros-args -p "duration:=$(printf %.1f "$DURATION")" -p plot:=out/demo_tracking.png
+status=$?
+if ! kill -0 "$bringup_pid" 2>/dev/null; then
+  echo "demo: pam-bringup stopped early; its log:" >&2
+  tail -n 30 out/logs/bringup.log >&2
+  exit 1
+fi
+exit $status

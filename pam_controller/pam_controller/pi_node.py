@@ -22,9 +22,7 @@ import math
 import sys
 import time
 
-import rclpy
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import SetBool
@@ -32,7 +30,7 @@ from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement
                                 ValveCommand)
 
 from pam_driver.diagnostics import OK, WARN, DiagnosticsPublisher
-from pam_driver.executors import make_executor, spin
+from pam_driver.executors import run_node
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_command,
                                     declare_parameters, merge_overrides, usage_text, wants_help)
 
@@ -248,24 +246,7 @@ def main(args=None) -> int:
             f'{NODE_NAME} --ros-args -p mode:=torque -p kp_torque:=3.0',
             'ros2 param set /pam/pi_node kp_angle 30.0']))
         return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PiNode()
-        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
-        executor.add_node(node)
-        spin(executor)
-    except ConfigError as exc:
-        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
-
+    return run_node(PiNode, NODE_NAME, args)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -17,14 +17,12 @@ import math
 import sys
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from pam_interfaces.msg import Reference
 
-from pam_driver.executors import make_executor, spin
-from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters, fail,
+from pam_driver.executors import run_node
+from pam_driver.node_params import (ParamSpec, check_all, declare_parameters, fail,
                                     merge_overrides, usage_text, wants_help)
 
 NODE_NAME = 'reference_node'
@@ -123,24 +121,7 @@ def main(args=None) -> int:
         sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
             f'{NODE_NAME} --ros-args -p mode:=torque -p amplitude:=2.0 -p profile:=steps']))
         return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ReferenceNode()
-        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
-        executor.add_node(node)
-        spin(executor)
-    except ConfigError as exc:
-        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
-
+    return run_node(ReferenceNode, NODE_NAME, args)
 
 if __name__ == '__main__':
     sys.exit(main())

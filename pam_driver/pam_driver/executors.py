@@ -13,6 +13,8 @@ must ask for the default executor (events=False).
 
 from __future__ import annotations
 
+import sys
+
 import rclpy
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.task import Future
@@ -47,5 +49,45 @@ def spin(executor, context=None) -> None:
     context = context if context is not None else executor.context
     never = Future()
     while context.ok():
-        executor.spin_until_future_complete(never, timeout_sec=SPIN_SLICE)
+        try:
+            executor.spin_until_future_complete(never, timeout_sec=SPIN_SLICE)
+        except RuntimeError:
+            # The wheels' EventsExecutor can raise "Unable to convert call argument" when the
+            # context shuts down under it (Ctrl-C): that is a shutdown, not a failure.
+            if context.ok():
+                raise
     raise rclpy.executors.ExternalShutdownException()
+
+
+def run_node(node_factory, name: str, args=None, stop=None) -> int:
+    """The main() of a PAM node: init, build the node, spin, shut down.
+
+    Returns the exit code: 0 after Ctrl-C/SIGTERM, 2 when the node's configuration is invalid
+    (ConfigError, printed as one line). An exception raised because the context was shut down
+    while the node was still starting (an early Ctrl-C) also counts as a clean stop.
+    The executor is an EventsExecutor unless the node runs on simulated time.
+    `stop(node)`, if given, runs before the node is destroyed.
+    """
+    from .node_params import ConfigError
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = node_factory()
+        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
+        executor.add_node(node)
+        spin(executor)
+    except ConfigError as exc:
+        print(f'[{name}] error: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():
+            raise
+    finally:
+        if node is not None:
+            if stop is not None:
+                stop(node)
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

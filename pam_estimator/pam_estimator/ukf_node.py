@@ -21,16 +21,14 @@ import math
 import sys
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_driver.executors import make_executor, spin
-from pam_driver.node_params import ConfigError, declare_parameters, wants_help
+from pam_driver.executors import run_node
+from pam_driver.node_params import declare_parameters, wants_help
 
 from .estimator_core import EstimatorCore
 from .ukf_config import PARAMETERS, build_config, usage_text
@@ -158,25 +156,7 @@ def main(args=None) -> int:
     if wants_help(argv):
         sys.stdout.write(usage_text())
         return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = UkfNode()
-        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
-        executor.add_node(node)
-        spin(executor)
-    except ConfigError as exc:
-        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.try_shutdown()
-    return 0
-
+    return run_node(UkfNode, NODE_NAME, args)
 
 if __name__ == '__main__':
     sys.exit(main())

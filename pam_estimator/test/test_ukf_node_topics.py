@@ -6,7 +6,6 @@ import subprocess
 import time
 
 import numpy as np
-import pytest
 from std_srvs.srv import Trigger
 
 from pam_driver.testing import executable, stamp_ns, wait_until
