@@ -33,7 +33,6 @@ import os
 import re
 import select
 import shlex
-import shutil
 import signal
 import subprocess
 import sys
@@ -41,6 +40,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from pam_driver.executables import executable_candidates, find_executable
 
 PROG = 'pam-bringup'
 PACKAGE = 'pam_controller'
@@ -81,32 +81,6 @@ def stack(args) -> list[NodeSpec]:
 
 
 # ---------------------------------------------------------------------------- look-ups
-def executable_candidates(name: str, package: str) -> list[str]:
-    """Where an executable is looked for, in order: next to this interpreter (the venv's bin),
-    PATH, the ament index's <prefix>/lib/<package> (a colcon install)."""
-    places = [str(Path(sys.executable).parent / name)]
-    found = shutil.which(name)
-    places.append(found if found else f'PATH ({name})')
-    try:
-        from ament_index_python.packages import get_package_prefix
-        places.append(str(Path(get_package_prefix(package)) / 'lib' / package / name))
-    except Exception:  # noqa: BLE001 - package not in the ament index: not a place then
-        places.append(f'<prefix of {package}>/lib/{package}/{name} (package not in the ament '
-                      'index: is AMENT_PREFIX_PATH set?)')
-    return places
-
-
-def find_executable(name: str, package: str) -> str | None:
-    """Path of a node executable (see executable_candidates), or None.
-
-    Same search as pam_driver.testing.executable(), without pytest."""
-    for place in executable_candidates(name, package):
-        path = Path(place)
-        if path.is_file() and os.access(path, os.X_OK):
-            return str(path)
-    return None
-
-
 def default_params_file() -> Path:
     """share/pam_controller/config/bringup.yaml of the install, else of this source tree."""
     try:

@@ -19,8 +19,8 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
-from pam_driver.executors import make_executor
-from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
+from pam_driver.executors import run_node
+from pam_driver.node_params import (ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 from pam_driver.run_recorder import stamp_ns
 
@@ -101,6 +101,14 @@ class TrackingReport(Node):
         commands = np.array([self.commands.get(s, (np.nan, np.nan)) for s in stamps])
         return (stamps - stamps[0]) * 1e-9, mode, reference, measured, estimate, commands
 
+    def finish(self) -> int:
+        """Exit code: the report's, or why there is none."""
+        if self.finished.done() and self.finished.result() != 0:
+            return self.finished.result()
+        if self.first_ns is None:
+            return 130                      # interrupted before anything was recorded
+        return self.report()
+
     def report(self) -> int:
         from pam_model.metrics import metrics
         if len(self.truth) < 100:
@@ -157,35 +165,11 @@ def plot_tracking(t, reference, measured, estimate, commands, unit, path):
 
 
 def main(args=None) -> int:
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
     argv = sys.argv if args is None else args
     if wants_help(argv):
         sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS))
         return 0
-    rclpy.init(args=args)
-    node = None
-    code = 1
-    try:
-        node = TrackingReport()
-        executor = make_executor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.finished.done():
-            executor.spin_until_future_complete(node.finished, timeout_sec=0.5)
-        code = node.finished.result() if node.finished.done() else 1
-        if code == 0:
-            code = node.report()
-    except ConfigError as exc:
-        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = node.report() if node is not None and node.first_ns is not None else 130
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
-
+    return run_node(TrackingReport, NODE_NAME, args)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -66,7 +66,8 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     (ConfigError, printed as one line). An exception raised because the context was shut down
     while the node was still starting (an early Ctrl-C) also counts as a clean stop.
     The executor is an EventsExecutor unless the node runs on simulated time.
-    `stop(node)`, if given, runs before the node is destroyed.
+    A node with a `finished` Future runs until it completes (or Ctrl-C), and its `finish()` gives
+    the exit code. `stop(node)`, if given, runs before the node is destroyed.
     """
     from .node_params import ConfigError
     rclpy.init(args=args)
@@ -75,12 +76,19 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
         node = node_factory()
         executor = make_executor(events=not node.get_parameter('use_sim_time').value)
         executor.add_node(node)
-        spin(executor)
+        finished = getattr(node, 'finished', None)
+        if finished is None:
+            spin(executor)
+        else:
+            while rclpy.ok() and not finished.done():
+                executor.spin_until_future_complete(finished, timeout_sec=SPIN_SLICE)
+            return node.finish()
     except ConfigError as exc:
         print(f'[{name}] error: {exc}', file=sys.stderr)
         return 2
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
+        if getattr(node, 'finished', None) is not None:
+            return node.finish()
     except Exception:
         if rclpy.ok():
             raise

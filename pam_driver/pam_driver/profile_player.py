@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import sys
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
-from pam_driver.executors import make_executor
-from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
+from pam_driver.executors import run_node
+from pam_driver.node_params import (ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 from pam_driver.run_recorder import RunRecorder
 
@@ -158,27 +156,7 @@ def main(args=None) -> int:
         sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
             f'{NODE_NAME} --ros-args -p duration:=30.0 -p save:=/tmp/run.npz']))
         return 0
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = ProfilePlayer()
-        executor = make_executor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.finished.done():
-            executor.spin_until_future_complete(node.finished, timeout_sec=0.5)
-        code = node.finish()
-    except ConfigError as exc:
-        print(f'[{NODE_NAME}] error: {exc}', file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        if node is not None:
-            code = node.finish()
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(ProfilePlayer, NODE_NAME, args)
 
 
 if __name__ == '__main__':

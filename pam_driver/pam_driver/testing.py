@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -32,6 +31,8 @@ from pathlib import Path
 
 import pytest
 
+from pam_driver.executables import executable_candidates, find_executable
+
 #: The project venv when running from a source checkout (make setup); None on a colcon install.
 VENV = Path(sys.prefix) if (Path(sys.prefix) / 'pyvenv.cfg').exists() else None
 STARTUP_TIMEOUT = 45.0   # s: first message from a fresh process on a loaded 2-core machine
@@ -39,22 +40,12 @@ STOP_TIMEOUT = 10.0      # s: SIGINT -> exit
 
 
 def executable(name: str, package: str) -> str:
-    """Path of a node executable: next to this interpreter (the venv's bin), on PATH, or in the
-    ament index's lib/<package> (a colcon install)."""
-    here = Path(sys.executable).parent / name
-    if here.exists():
-        return str(here)
-    found = shutil.which(name)
-    if found:
-        return found
-    try:
-        from ament_index_python.packages import get_package_prefix
-        path = Path(get_package_prefix(package)) / 'lib' / package / name
-        if path.exists():
-            return str(path)
-    except Exception:  # noqa: BLE001 - reported below
-        pass
-    pytest.fail(f'{name} not found (venv bin, PATH, lib/{package}): run `make setup` first')
+    """Path of a node executable (pam_driver.executables), or fail the test."""
+    path = find_executable(name, package)
+    if path is None:
+        pytest.fail(f'{name} not found in: {", ".join(executable_candidates(name, package))}: '
+                    'run `make setup` first')
+    return path
 
 
 def domain_id_for(module_name: str) -> int:
