@@ -205,4 +205,11 @@ if [[ -d "$STAMPS" ]]; then
   done
 fi
 
+# pip's reinstall dropped numba's on-disk cache of the compiled kernels: compile them now, once,
+# rather than in the first node or test that runs.
+if ((did)); then
+  say "compiling the numba kernels (once per install)..."
+  run_logged numba-warm-up "$VPY" "$ROOT/scripts/warm_numba_cache.py" || exit 1
+fi
+
 if ((did)); then say "done"; else say "up to date"; fi
