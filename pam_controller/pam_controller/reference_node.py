@@ -4,7 +4,7 @@ Profiles (time t from the node's first tick, on the node clock: simulated time w
 use_sim_time):
     steps     paper-style steps within +-amplitude, held `hold` s each, from `seed`
               (pam_model.profiles.step_reference_profile; the first hold is at 0)
-    ramp      triangle between -amplitude and +amplitude with period `period`
+    ramp      triangle between -amplitude and +amplitude with period `period`, from 0 rising
     sine      amplitude sin(2 pi t / period)
     constant  offset
 Every profile adds `offset`. mode 'angle' values are in rad, 'torque' in N m. After `duration`
@@ -60,8 +60,8 @@ def profile_value(values: dict, steps: np.ndarray | None, t: float) -> float:
     if kind == 'steps':
         value = steps[min(int(t / values['hold']), len(steps) - 1)]
     elif kind == 'ramp':
-        phase = (t / values['period']) % 1.0
-        value = a * (1.0 - 4.0 * abs(phase - 0.5)) * -1.0
+        phase = (t / values['period'] + 0.25) % 1.0        # a triangle from 0, rising first
+        value = a * (1.0 - 4.0 * abs(phase - 0.5))
     elif kind == 'sine':
         value = a * math.sin(2.0 * math.pi * t / values['period'])
     else:

@@ -1,0 +1,87 @@
+"""pi_node as a real process fed by the test's probe: one command per estimate with its stamp,
+run-time gain changes (valid accepted, invalid rejected), the enable service, the feedback
+timeout, and a reference switching the mode."""
+
+import math
+import time
+
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from std_srvs.srv import SetBool
+
+from pam_driver.testing import wait_until
+from pam_interfaces.msg import ControllerState, JointEstimate, Reference, ValveCommand
+
+
+def call(probe, srv_type, name, request):
+    client = probe.node.create_client(srv_type, name)
+    assert client.wait_for_service(timeout_sec=20.0), name
+    future = client.call_async(request)
+    assert wait_until(future.done, 10.0), name
+    return future.result()
+
+
+def double_param(name, value):
+    return Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                                     double_value=value))
+
+
+def test_pi_node_commands_gains_enable_timeout(node_process, probe):
+    pi = node_process('pi_node', 'pam_controller', '-p', 'initial_reference:=0.1',
+                      '-p', 'feedback_timeout:=0.2')
+    commands = probe.subscribe(ValveCommand, '/pam/valve_command')
+    states = probe.subscribe(ControllerState, '/pam/controller_state')
+    estimates = probe.publisher(JointEstimate, '/pam/estimate')
+    references = probe.publisher(Reference, '/pam/reference')
+    assert wait_until(lambda: estimates.get_subscription_count() > 0, 60.0), pi.stderr
+
+    def feed(n, angle=0.0, torque=0.0, start=1.0):
+        for k in range(n):
+            msg = JointEstimate(angle=angle, torque=torque)
+            t = start + k * 0.001
+            msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round(t % 1 * 1e9))
+            estimates.publish(msg)
+            time.sleep(0.001)
+
+    feed(50)
+    pi.wait_for(lambda: len(commands) >= 50, 20.0, '50 commands')
+    last = commands.messages()[-1]
+    assert last.header.stamp.sec == 1 and last.u1 > 5.5 > last.u2     # e > 0 raises u1
+    assert abs(last.u1 + last.u2 - 11.0) < 1e-9
+    state = states.messages()[-1]
+    assert state.error == 0.1 and state.p_term == 40.0 * 0.1 and not state.saturated
+
+    bad = call(probe, SetParameters, '/pam/pi_node/set_parameters',
+               SetParameters.Request(parameters=[double_param('kp_angle', -1.0)]))
+    assert not bad.results[0].successful
+    bad = call(probe, SetParameters, '/pam/pi_node/set_parameters',
+               SetParameters.Request(parameters=[double_param('u_min', 9.9),
+                                                 double_param('u_max', 5.0)]))
+    assert not bad.results[0].successful
+    good = call(probe, SetParameters, '/pam/pi_node/set_parameters',
+                SetParameters.Request(parameters=[double_param('kp_angle', 10.0)]))
+    assert good.results[0].successful
+    commands.clear()
+    feed(20, start=2.0)
+    pi.wait_for(lambda: len(commands) >= 20, 20.0, 'commands with the new gain')
+    assert math.isclose(states.messages()[-1].p_term, 10.0 * 0.1)
+
+    commands.clear()                                   # no feedback for 0.2 s -> safe command
+    pi.wait_for(lambda: len(commands) >= 1, 5.0, 'the safe command after the timeout')
+    assert (commands.messages()[-1].u1, commands.messages()[-1].u2) == (5.5, 5.5)
+
+    assert call(probe, SetBool, '/pam/pi_node/enable', SetBool.Request(data=False)).success
+    commands.clear()
+    feed(10, start=3.0)
+    pi.wait_for(lambda: len(commands) >= 10, 20.0, 'commands while disabled')
+    assert all((c.u1, c.u2) == (5.5, 5.5) for c in commands.messages())
+    assert call(probe, SetBool, '/pam/pi_node/enable', SetBool.Request(data=True)).success
+
+    references.publish(Reference(mode=Reference.TORQUE, value=1.0))
+    pi.wait_for(lambda: 'integral reset' in pi.stderr + pi.stdout, 10.0, 'the mode switch log')
+    states.clear()
+    feed(10, torque=0.5, start=4.0)
+    pi.wait_for(lambda: len(states) >= 10, 20.0, 'torque-mode states')
+    state = states.messages()[-1]
+    assert state.mode == Reference.TORQUE and state.error == 0.5
+    assert pi.alive()
