@@ -24,6 +24,11 @@ setup(
         'console_scripts': [
             'sim_node = pam_driver.sim_node:main',
             'profile_player = pam_driver.profile_player:main',
+            'driver_node = pam_driver.driver_node:main',
+            'pam-emulator = pam_driver.emulator:main',
+            'bag_record = pam_driver.bag_record:main',
+            'bag_play = pam_driver.bag_play:main',
+            'pam-bag-info = pam_driver.bag_info:main',
         ],
     },
 )

@@ -1,0 +1,74 @@
+"""bag_record at 4 topics x 1 kHz: published vs recorded counts; bag_play send lateness.
+
+Run after `source scripts/env.sh`:  .venv/bin/python benchmarks/bag_throughput.py [--seconds 20]
+A publisher thread in this process sends Pressures, ValveCommand, JointMeasurement and
+JointEstimate at 1 kHz each (absolute deadlines) while bag_record runs as a separate process on
+an isolated ROS_DOMAIN_ID; then bag_play replays the bag and prints its send lateness.
+"""
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 100 + 120))
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+import rclpy  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from pam_interfaces.msg import (JointEstimate, JointMeasurement, Pressures,  # noqa: E402
+                                ValveCommand)
+
+from pam_driver.bags import bag_info  # noqa: E402
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument('--seconds', type=float, default=20.0)
+    args = parser.parse_args()
+    out = Path(tempfile.mkdtemp()) / 'bench'
+    rec = subprocess.Popen(['bag_record', '--ros-args', '-p', f'output:={out}'],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    rclpy.init()
+    node = rclpy.create_node('bag_bench_publisher')
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    types = {'pressures': Pressures, 'valve_command': ValveCommand,
+             'joint_measured': JointMeasurement, 'estimate': JointEstimate}
+    pubs = [node.create_publisher(cls, f'/pam/{name}', qos) for name, cls in types.items()]
+    msgs = [cls() for cls in types.values()]
+    time.sleep(4.0)   # let bag_record discover the topics
+    published = 0
+    t0 = time.monotonic()
+    k = 0
+    while time.monotonic() - t0 < args.seconds:
+        k += 1
+        due = t0 + k * 1e-3
+        delay = due - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        for pub, msg in zip(pubs, msgs):
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * 1_000_000, 10**9)
+            pub.publish(msg)
+            published += 1
+    time.sleep(1.0)
+    rec.send_signal(signal.SIGINT)
+    rec.wait(timeout=30)
+    info = bag_info(out)
+    recorded = sum(t['count'] for t in info['topics'] if t['name'] != '/diagnostics')
+    print(f'published {published} messages on 4 topics in {args.seconds:g} s; recorded '
+          f'{recorded} (lost {published - recorded}); bag {info["size"] / 2**20:.1f} MiB '
+          f'({info["compression"]})')
+    node.destroy_node()
+    rclpy.shutdown()
+    play = subprocess.run(['bag_play', '--ros-args', '-p', f'bag:={out}', '-p', 'delay:=0.5'],
+                          capture_output=True, text=True, timeout=args.seconds * 3 + 60)
+    print(play.stdout.strip().splitlines()[-1] if play.stdout.strip() else play.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,226 @@
+"""bag_play: publishes a bag's messages from their serialized bytes on their original schedule
+(a `ros2 bag play` stand-in).
+
+The bag (or the selected topics from `start_offset` on) is loaded into memory before playing
+(reading while playing stalls the sends: shared/BAGS.md); a dedicated thread then publishes each
+message's CDR bytes at t0 + (t_msg − t_first) / rate on absolute deadlines (no drift). Options:
+rate factor, loop, topic selection, remapping, start offset, start paused (resume with the
+`~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate.
+Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
+package) is one error line naming the file and the problem, exit code 2.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+
+from pam_driver.bag_record import message_class, split_list
+from pam_driver.bags import BagError, load_bag
+from pam_driver.executors import run_node
+from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
+                                    merge_overrides, usage_text, wants_help)
+
+NODE_NAME = 'bag_play'
+SPIN_AHEAD = 0.0005   # s: sleep until this close to a deadline, then busy-wait
+
+PARAMETERS = (
+    ParamSpec('bag', '', 'string', '', 'Bag directory (with metadata.yaml) to play.'),
+    ParamSpec('rate', 1.0, 'double', '', 'Playback speed factor.', range=(0.01, 100.0)),
+    ParamSpec('loop', False, 'bool', '', 'Play again from the start when the bag ends.'),
+    ParamSpec('topics', '', 'string', '', "Comma-separated topics to play; '': all."),
+    ParamSpec('remap', '', 'string', '',
+              "Comma-separated FROM:=TO topic remappings, e.g. '/pam/pressures:=/x/pressures'."),
+    ParamSpec('start_offset', 0.0, 'double', 's', 'Start this far into the bag.',
+              range=(0.0, 1e7)),
+    ParamSpec('start_paused', False, 'bool', '',
+              'Wait for the ~/resume service (std_srvs/Trigger) before playing.'),
+    ParamSpec('clock', 0.0, 'double', 'Hz',
+              'Publish the bag time on /clock at this rate while playing; 0: no /clock.',
+              range=(0.0, 10000.0)),
+    ParamSpec('delay', 0.5, 'double', 's',
+              'Wait this long after creating the publishers (for subscribers to match).',
+              range=(0.0, 60.0)),
+)
+
+SUMMARY = [
+    'Plays a ROS 2 rosbag2 MCAP bag: publishes the serialized messages on their original',
+    'schedule (rate, loop, topic selection, remapping, start offset, start paused, /clock).',
+]
+
+
+def parse_remap(text: str) -> dict[str, str]:
+    result = {}
+    for item in split_list(text):
+        source, sep, target = item.partition(':=')
+        if not sep or not source.strip() or not target.strip():
+            raise ConfigError(f"parameter 'remap': expected FROM:=TO, got {item!r}")
+        result[source.strip()] = target.strip()
+    return result
+
+
+class BagPlayer(Node):
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
+                                                       declare_parameters(self, PARAMETERS)))
+        self.values = values
+        if not values['bag']:
+            raise ConfigError("parameter 'bag': give the bag directory (-p bag:=PATH)")
+        remap = parse_remap(values['remap'])
+        topics = split_list(values['topics']) or None
+        try:
+            self.bag = load_bag(values['bag'], topics, values['start_offset'])
+        except BagError as exc:
+            raise ConfigError(str(exc)) from exc
+        self.publishers_by_index = []
+        for name in self.bag.topic_names:
+            msgtype = self.bag.topics[name]
+            cls = message_class(msgtype)
+            if cls is None:
+                raise ConfigError(f'{self.bag.path}: unknown message type {msgtype!r} of topic '
+                                  f'{name}: its package is not installed here')
+            qos = self._qos(self.bag.qos.get(name, []))
+            self.publishers_by_index.append(
+                self.create_publisher(cls, remap.get(name, name), qos))
+        self.clock_pub = None
+        if values['clock'] > 0.0:
+            from rosgraph_msgs.msg import Clock
+            self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+            self._clock_msg = Clock
+        from std_srvs.srv import Trigger
+        self.create_service(Trigger, '~/resume', self._on_resume)
+        self.create_service(Trigger, '~/pause', self._on_pause)
+        self.finished = Future()
+        self.lateness_ns: list[int] = []
+        self.published = 0
+        self._running = threading.Event()
+        if not values['start_paused']:
+            self._running.set()
+        self._quit = threading.Event()
+        self._thread = threading.Thread(target=self._play, name='bag_play', daemon=True)
+        self._thread.start()
+        self.get_logger().info(
+            f'playing {len(self.bag.data)} messages on {len(self.bag.topic_names)} topics from '
+            f'{self.bag.path} at rate {values["rate"]:g}' +
+            (' (paused: call ~/resume)' if values['start_paused'] else ''))
+
+    @staticmethod
+    def _qos(offered) -> QoSProfile:
+        from rosbags.interfaces import QosDurability, QosReliability
+        reliable = all(q.reliability != QosReliability.BEST_EFFORT for q in offered)
+        latched = bool(offered) and all(q.durability == QosDurability.TRANSIENT_LOCAL
+                                        for q in offered)
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                          reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                       else ReliabilityPolicy.BEST_EFFORT),
+                          durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                      else DurabilityPolicy.VOLATILE))
+
+    def _on_resume(self, request, response):
+        response.success = not self._running.is_set()
+        response.message = 'resumed' if response.success else 'already playing'
+        self._running.set()
+        return response
+
+    def _on_pause(self, request, response):
+        response.success = self._running.is_set()
+        response.message = 'paused' if response.success else 'already paused'
+        self._running.clear()
+        return response
+
+    def _wait_running(self) -> int:
+        """Block while paused; returns the paused time in ns."""
+        if self._running.is_set():
+            return 0
+        t = time.monotonic_ns()
+        while not self._running.wait(0.1):
+            if self._quit.is_set():
+                break
+        return time.monotonic_ns() - t
+
+    def _publish_clock(self, bag_ns: int) -> None:
+        msg = self._clock_msg()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(bag_ns), 1_000_000_000)
+        self.clock_pub.publish(msg)
+
+    def _play(self) -> None:
+        try:
+            self._play_loop()
+        finally:
+            if not self.finished.done():
+                self.finished.set_result(0)
+
+    def _play_loop(self) -> None:
+        time.sleep(self.values['delay'])
+        bag, pubs = self.bag, self.publishers_by_index
+        times, tix, data = bag.times, bag.topic_index, bag.data
+        rate = self.values['rate']
+        clock_period = (1e9 / self.values['clock']) if self.clock_pub is not None else None
+        lateness = self.lateness_ns
+        while not self._quit.is_set():
+            if not times:
+                return
+            first = bag.start_ns + int(self.values['start_offset'] * 1e9)
+            first = min(first, times[0])
+            t0 = time.monotonic_ns() + self._wait_running()
+            next_clock = 0.0
+            for i in range(len(times)):
+                due = t0 + int((times[i] - first) / rate)
+                while True:
+                    if self._quit.is_set():
+                        return
+                    if not self._running.is_set():
+                        paused = self._wait_running()
+                        t0 += paused
+                        due += paused
+                    now = time.monotonic_ns()
+                    if clock_period is not None and now >= next_clock:
+                        self._publish_clock(first + (now - t0) * rate)
+                        next_clock = now + clock_period
+                    wait = due - now
+                    if wait <= 0:
+                        break
+                    if clock_period is not None:
+                        wait = min(wait, max(0, next_clock - now))
+                    if wait > SPIN_AHEAD * 1e9:
+                        time.sleep((wait - SPIN_AHEAD * 1e9) * 1e-9)
+                pubs[tix[i]].publish(data[i])
+                lateness.append(time.monotonic_ns() - due)
+                self.published += 1
+            if not self.values['loop']:
+                return
+
+    def finish(self) -> int:
+        self._quit.set()
+        self._running.set()
+        self._thread.join(timeout=5.0)
+        late = sorted(self.lateness_ns)
+        if late:
+            p50, p99 = late[len(late) // 2], late[min(len(late) - 1, int(len(late) * 0.99))]
+            print(f'[{NODE_NAME}] published {self.published} messages; send lateness p50 '
+                  f'{p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us', flush=True)
+        else:
+            print(f'[{NODE_NAME}] published {self.published} messages', flush=True)
+        return 0
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+            f'{NODE_NAME} --ros-args -p bag:=out/run1',
+            f'{NODE_NAME} --ros-args -p bag:=out/run1 -p rate:=2.0 -p loop:=true '
+            "-p topics:=/pam/pressures -p remap:=/pam/pressures:=/replay/pressures",
+        ]))
+        return 0
+    return run_node(BagPlayer, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,458 @@
+"""rosbag2 (Jazzy) MCAP bags without rosbag2 and without rclpy: writing, checking, reading, info.
+
+The bag layout is Jazzy's (see shared/BAGS.md): a directory with metadata.yaml version 9 and one
+`<dir>.mcap` file, profile ros2, one ros2msg schema per type with its full definition, one channel
+per topic with metadata offered_qos_profiles and topic_type_hash (RIHS01), a rosbag2 metadata
+record, zstd chunk compression and the per-message index. Writing goes through rosbags' Writer
+with a storage writer that also writes topic_type_hash, closes a chunk at least every
+`chunk_interval` seconds and writes it to disk at once (unbuffered), so that a crash loses at most
+the last chunk, and a write error leaves the file truncated to its last complete chunk and closed
+with a valid summary (a readable bag of what was written).
+
+Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, registered from their
+.msg files (their RIHS01 hashes equal rosidl's).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+METADATA = 'metadata.yaml'
+DEFAULT_CHUNK_INTERVAL = 1.0   # s: longest time a received message stays only in memory
+
+
+class BagError(RuntimeError):
+    """A bag cannot be written or read; the message names the file and the problem."""
+
+
+class BagWriteError(BagError):
+    """Writing failed; the bag was closed with what had been written before the error."""
+
+
+# ------------------------------------------------------------------------------- types
+def interface_dirs() -> list[Path]:
+    """Folders holding pam_interfaces/msg/*.msg: the installed share folder(s), else the source."""
+    dirs = []
+    import sys
+    prefixes = [*os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep), sys.prefix]
+    for prefix in prefixes:
+        if prefix and (Path(prefix) / 'share' / 'pam_interfaces' / 'msg').is_dir():
+            dirs.append(Path(prefix) / 'share' / 'pam_interfaces' / 'msg')
+    source = Path(__file__).resolve().parents[2] / 'pam_interfaces' / 'msg'
+    if not dirs and source.is_dir():
+        dirs.append(source)
+    return dirs
+
+
+def make_typestore(extra_msg_files=()):
+    """rosbags typestore: Jazzy's types + pam_interfaces (+ extra (msgtype, path) .msg files)."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = {}
+    files = [(f'pam_interfaces/msg/{p.stem}', p) for d in interface_dirs()[:1]
+             for p in sorted(d.glob('*.msg'))]
+    for msgtype, path in [*files, *extra_msg_files]:
+        types.update(get_types_from_msg(Path(path).read_text(), msgtype))
+    store.register(types)
+    return store
+
+
+def known_type(store, msgtype: str) -> bool:
+    return msgtype in store.fielddefs
+
+
+# ------------------------------------------------------------------------------- QoS
+def make_qos(reliable: bool = True, depth: int = 100, transient_local: bool = False,
+             keep_all: bool = False):
+    """A rosbags Qos (the form of metadata.yaml's offered_qos_profiles)."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+    infinite = QosTime(sec=2147483647, nsec=4294967295)
+    return Qos(history=QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST, depth=depth,
+               reliability=QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+               durability=(QosDurability.TRANSIENT_LOCAL if transient_local
+                           else QosDurability.VOLATILE),
+               deadline=infinite, lifespan=infinite, liveliness=QosLiveliness.AUTOMATIC,
+               liveliness_lease_duration=infinite, avoid_ros_namespace_conventions=False)
+
+
+def qos_from_ints(history: int, depth: int, reliability: int, durability: int, liveliness: int,
+                  deadline=(0, 0), lifespan=(0, 0), lease=(0, 0)):
+    """A rosbags Qos from the integer enums of rmw (rclpy's QoSProfile policies use the same)."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    def enum(cls, value):
+        try:
+            return cls(int(value))
+        except ValueError:
+            return cls.UNKNOWN
+    return Qos(history=enum(QosHistory, history), depth=int(depth),
+               reliability=enum(QosReliability, reliability),
+               durability=enum(QosDurability, durability), deadline=QosTime(*deadline),
+               lifespan=QosTime(*lifespan), liveliness=enum(QosLiveliness, liveliness),
+               liveliness_lease_duration=QosTime(*lease), avoid_ros_namespace_conventions=False)
+
+
+# ------------------------------------------------------------------------------- writing
+class _FullWrite:
+    """An unbuffered file that writes everything or raises (a short write becomes an OSError)."""
+
+    def __init__(self, raw):
+        self.raw = raw
+
+    def write(self, data) -> int:
+        view = memoryview(data)
+        while len(view):
+            n = self.raw.write(view)
+            if not n:
+                raise OSError('short write (file size limit or disk full?)')
+            view = view[n:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self.raw.tell()
+
+    def flush(self) -> None:
+        pass
+
+    def truncate(self, size: int) -> None:
+        self.raw.truncate(size)
+        self.raw.seek(size)
+
+    def close(self) -> None:
+        self.raw.close()
+
+
+def _storage_writer_class():
+    from io import BytesIO
+
+    from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, write_string
+
+    class PamMcapWriter(McapWriter):
+        """rosbags' MCAP writer + channel topic_type_hash, time-bounded chunks, write-error
+        recovery (truncate to the last complete chunk)."""
+
+        chunk_interval = DEFAULT_CHUNK_INTERVAL
+
+        def __init__(self, path, compression):
+            super().__init__(path, compression)
+            self.bio.flush()
+            self.bio = _FullWrite(self.bio.detach())
+            self._chunk_opened = time.monotonic()
+            self._committed_stats = dict(self.channel_stats)
+            self._committed_times = (self.message_start_time, self.message_end_time)
+            self._committed_chunks = 0
+            self._chunk_stats: dict[int, int] = {}
+            self.failed: BaseException | None = None
+
+        def add_connection(self, connection, offered_qos_profiles):
+            metadata = BytesIO()
+            write_string(metadata, 'offered_qos_profiles')
+            write_string(metadata, offered_qos_profiles)
+            write_string(metadata, 'topic_type_hash')
+            write_string(metadata, connection.digest)
+            self.channels.append(Channel(connection.id, connection.msgtype, connection.topic,
+                                         connection.ext.serialization_format,
+                                         metadata.getvalue()))
+            self.channel_stats[connection.id] = 0
+            self._committed_stats[connection.id] = 0
+            write_channel(self.chunk.bio, self.channels[-1], self.schemas)
+
+        def write(self, connection, timestamp, data):
+            if self.failed is not None:
+                raise BagWriteError(f'{self.path}: writing stopped after an error: '
+                                    f'{self.failed}')
+            super().write(connection, timestamp, data)
+            if time.monotonic() - self._chunk_opened > self.chunk_interval:
+                self.close_chunk()
+
+        def close_chunk(self):
+            start = self.bio.tell()
+            try:
+                super().close_chunk()
+            except OSError as exc:
+                self.failed = exc
+                self.bio.truncate(start)
+                # forget the lost chunk: counts and times as of the last complete chunk
+                del self.chunks[self._committed_chunks:]
+                self.channel_stats = dict(self._committed_stats)
+                self.message_start_time, self.message_end_time = self._committed_times
+                from collections import defaultdict
+
+                from rosbags.rosbag2.storage_mcap import PendingChunk
+                self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+                if start <= 8 + 64:   # nothing but the header was written: keep the definitions
+                    for schema in self.schemas:
+                        from rosbags.rosbag2.storage_mcap import write_schema
+                        write_schema(self.chunk.bio, schema)
+                    for channel in self.channels:
+                        write_channel(self.chunk.bio, channel, self.schemas)
+                raise BagWriteError(f'{self.path}: write failed: {exc}') from exc
+            self._chunk_opened = time.monotonic()
+            self._committed_stats = dict(self.channel_stats)
+            self._committed_times = (self.message_start_time, self.message_end_time)
+            self._committed_chunks = len(self.chunks)
+
+    return PamMcapWriter
+
+
+@dataclass
+class _Topic:
+    name: str
+    msgtype: str
+    connection: object
+    count: int = 0
+
+
+@dataclass
+class BagWriter:
+    """A Jazzy MCAP bag being written: add_topic(), write(topic, t_ns, cdr_bytes), close().
+
+    The output directory must not exist (never overwritten). After a BagWriteError the bag holds
+    what was written before the error; close() then finishes it (summary, metadata.yaml).
+    """
+
+    path: Path
+    compression: str = 'zstd'           # 'zstd' (per chunk) or 'none'
+    chunk_interval: float = DEFAULT_CHUNK_INTERVAL
+    typestore: object = None
+    topics: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        from rosbags.rosbag2 import Writer
+        from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+        self.path = Path(self.path)
+        if self.path.exists():
+            raise BagError(f'{self.path}: the output already exists; not overwriting it '
+                           '(choose another name or remove it)')
+        if self.typestore is None:
+            self.typestore = make_typestore()
+        storage = _storage_writer_class()
+        storage.chunk_interval = self.chunk_interval
+
+        class _Writer(Writer):
+            STORAGE_PLUGINS = {StoragePlugin.MCAP: storage}
+
+        self._writer = _Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if self.compression == 'zstd':
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        elif self.compression != 'none':
+            raise BagError(f"unknown compression {self.compression!r}: use 'zstd' or 'none'")
+        try:
+            self._writer.open()
+        except Exception as exc:  # noqa: BLE001
+            raise BagError(f'{self.path}: cannot create the bag: {exc}') from exc
+        self._writer.set_custom_data('recorder', 'pam_driver bag_record')
+        self.closed = False
+        self.error: BaseException | None = None
+
+    @property
+    def mcap_path(self) -> Path:
+        return self.path / f'{self.path.name}.mcap'
+
+    def add_topic(self, topic: str, msgtype: str, qos_profiles=()) -> None:
+        if not known_type(self.typestore, msgtype):
+            raise BagError(f'unknown message type {msgtype!r} of topic {topic}')
+        conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
+                                           offered_qos_profiles=list(qos_profiles))
+        self.topics[topic] = _Topic(topic, msgtype, conn)
+
+    def write(self, topic: str, t_ns: int, data: bytes) -> None:
+        entry = self.topics[topic]
+        try:
+            self._writer.write(entry.connection, int(t_ns), data)
+        except BagWriteError as exc:
+            self.error = exc
+            raise
+        except OSError as exc:
+            self.error = exc
+            raise BagWriteError(f'{self.mcap_path}: write failed: {exc}') from exc
+        entry.count += 1
+
+    def close(self) -> None:
+        """Write the summary and metadata.yaml (the counts of what is on disk)."""
+        if self.closed:
+            return
+        self.closed = True
+        storage = self._writer.storage
+        if storage is not None and storage.failed is None:
+            try:
+                if storage.chunk.bio.tell():
+                    storage.close_chunk()
+            except BagWriteError as exc:
+                self.error = exc
+        if storage is not None and storage.failed is not None:
+            # make the outer counts agree with what is in the file
+            self._writer.counts = {cid: n for cid, n in storage.channel_stats.items()}
+            self._writer.min_timestamp, self._writer.max_timestamp = (
+                storage.message_start_time, storage.message_end_time)
+        try:
+            self._writer.close()
+        except OSError as exc:
+            raise BagWriteError(f'{self.path}: cannot finish the bag: {exc}') from exc
+
+    def counts(self) -> dict[str, int]:
+        return {t: e.count for t, e in self.topics.items()}
+
+
+# ------------------------------------------------------------------------------- reading
+def check_bag(path) -> Path:
+    """The bag directory, after checking metadata.yaml and its .mcap files; BagError otherwise."""
+    path = Path(path)
+    if path.is_file() and path.suffix == '.mcap':
+        path = path.parent
+    if not path.is_dir():
+        raise BagError(f'{path}: no such bag directory')
+    meta = path / METADATA
+    if not meta.is_file():
+        raise BagError(f'{meta}: missing (not a rosbag2 bag directory, or the recorder was '
+                       'killed before closing it)')
+    try:
+        from ruamel.yaml import YAML
+        info = YAML(typ='safe').load(meta.read_text())['rosbag2_bagfile_information']
+        files = info['relative_file_paths']
+        storage = info.get('storage_identifier')
+    except Exception as exc:  # noqa: BLE001
+        raise BagError(f'{meta}: unreadable metadata: {exc}') from exc
+    if storage != 'mcap':
+        raise BagError(f'{meta}: storage {storage!r} is not supported (only mcap)')
+    for name in files:
+        check_mcap(path / name)
+    return path
+
+
+def check_mcap(path) -> None:
+    """Magic at both ends and a readable summary; BagError naming the file and the problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise BagError(f'{path}: missing (listed in {METADATA})')
+    size = path.stat().st_size
+    with path.open('rb') as f:
+        head = f.read(8)
+        f.seek(max(0, size - 8))
+        tail = f.read(8)
+    if head != MCAP_MAGIC:
+        raise BagError(f'{path}: not an MCAP file (bad magic)')
+    if size < 16 + 29 or tail != MCAP_MAGIC:
+        raise BagError(f'{path}: truncated or corrupt MCAP file (no footer: the recording was '
+                       'cut short or the file was damaged)')
+    try:
+        from mcap.reader import make_reader
+        with path.open('rb') as f:
+            summary = make_reader(f).get_summary()
+        if summary is None:
+            raise ValueError('no summary section')
+    except Exception as exc:  # noqa: BLE001
+        raise BagError(f'{path}: corrupt MCAP file: {exc}') from exc
+
+
+@dataclass
+class BagContents:
+    """Messages of a bag loaded into memory, in receive-time order."""
+
+    path: Path
+    topics: dict                # topic -> msgtype
+    qos: dict                   # topic -> list of rosbags Qos
+    times: list                 # int ns, sorted
+    topic_index: list           # index into topic_names
+    topic_names: list
+    data: list                  # bytes
+    start_ns: int = 0
+    end_ns: int = 0
+
+
+def load_bag(path, topics=None, start_offset: float = 0.0) -> BagContents:
+    """Read a bag's messages (only `topics` if given) from start_offset (s) into memory."""
+    from rosbags.rosbag2 import Reader
+    path = check_bag(path)
+    try:
+        reader = Reader(path)
+        reader.open()
+    except Exception as exc:  # noqa: BLE001
+        raise BagError(f'{path}: cannot open the bag: {exc}') from exc
+    try:
+        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        if topics is not None:
+            missing = sorted(set(topics) - {c.topic for c in reader.connections})
+            if missing:
+                raise BagError(f'{path}: no topic {", ".join(missing)} in the bag (it has: '
+                               f'{", ".join(sorted(reader.topics))})')
+        names = sorted({c.topic for c in conns})
+        index = {n: i for i, n in enumerate(names)}
+        start = reader.start_time + int(start_offset * 1e9)
+        contents = BagContents(path, {c.topic: c.msgtype for c in conns},
+                               {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
+                               [], [], names, [], reader.start_time, reader.end_time)
+        times, tix, data = contents.times, contents.topic_index, contents.data
+        if conns:
+            try:
+                for conn, t, raw in reader.messages(connections=conns, start=start):
+                    times.append(t)
+                    tix.append(index[conn.topic])
+                    data.append(bytes(raw))
+            except Exception as exc:  # noqa: BLE001
+                raise BagError(f'{path}: corrupt data after {len(times)} messages: '
+                               f'{exc}') from exc
+        return contents
+    finally:
+        reader.close()
+
+
+def bag_info(path) -> dict:
+    """Topics, types, counts, duration, rates and compression of a bag (from its metadata and
+    the MCAP summary)."""
+    from ruamel.yaml import YAML
+    path = check_bag(path)
+    meta = YAML(typ='safe').load((path / METADATA).read_text())['rosbag2_bagfile_information']
+    files = [path / f for f in meta['relative_file_paths']]
+    duration = meta['duration']['nanoseconds'] * 1e-9
+    chunk_compression = set()
+    from mcap.reader import make_reader
+    for f in files:
+        with f.open('rb') as stream:
+            summary = make_reader(stream).get_summary()
+        chunk_compression |= {c.compression or 'none' for c in summary.chunk_indexes}
+    topics = []
+    for entry in meta['topics_with_message_count']:
+        tm = entry['topic_metadata']
+        n = entry['message_count']
+        topics.append({'name': tm['name'], 'type': tm['type'], 'count': n,
+                       'rate': (n - 1) / duration if duration > 0 and n > 1 else 0.0,
+                       'serialization_format': tm['serialization_format'],
+                       'type_description_hash': tm.get('type_description_hash', '')})
+    return {'path': str(path), 'version': meta['version'],
+            'storage': meta['storage_identifier'], 'files': [str(f) for f in files],
+            'size': sum(f.stat().st_size for f in files), 'duration': duration,
+            'start_ns': meta['starting_time']['nanoseconds_since_epoch'],
+            'message_count': meta['message_count'],
+            'compression': ', '.join(sorted(chunk_compression)) or 'none',
+            'compression_mode': (meta.get('compression_mode') or
+                                 ('chunk (storage)' if chunk_compression - {'none'} else '')),
+            'topics': sorted(topics, key=lambda t: t['name'])}
+
+
+def format_info(info: dict) -> str:
+    import datetime
+    start = datetime.datetime.fromtimestamp(info['start_ns'] * 1e-9, tz=datetime.timezone.utc)
+    end = datetime.datetime.fromtimestamp(info['start_ns'] * 1e-9 + info['duration'],
+                                          tz=datetime.timezone.utc)
+    lines = [f"Files:             {', '.join(Path(f).name for f in info['files'])}",
+             f"Bag size:          {info['size'] / 2**20:.1f} MiB",
+             f"Storage id:        {info['storage']} (metadata version {info['version']})",
+             f"Duration:          {info['duration']:.3f}s",
+             f"Start:             {start:%b %d %Y %H:%M:%S.%f} (UTC)",
+             f"End:               {end:%b %d %Y %H:%M:%S.%f} (UTC)",
+             f"Messages:          {info['message_count']}",
+             f"Compression:       {info['compression']} ({info['compression_mode'] or 'none'})",
+             'Topic information:']
+    width = max((len(t['name']) for t in info['topics']), default=0)
+    for t in info['topics']:
+        lines.append(f"  Topic: {t['name']:<{width}} | Type: {t['type']} | Count: {t['count']} | "
+                     f"Rate: {t['rate']:.1f} Hz | Serialization Format: "
+                     f"{t['serialization_format']}")
+    return '\n'.join(lines) + '\n'

@@ -1,0 +1,236 @@
+"""The binary serial protocol between driver_node and the DAQ board (spec: pam_driver/PROTOCOL.md).
+
+No ROS and no pyserial in here: frame encoding, payload packing and a streaming decoder that
+resynchronises after garbage bytes and CRC errors, counting both.
+
+Frame: SYNC (0xA5 0x5A) | type u8 | seq u16 LE | length u8 | payload | CRC-16 u16 LE
+CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection) over type..payload.
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+from dataclasses import dataclass
+
+SYNC = b'\xA5\x5A'
+HEADER = struct.Struct('<BHB')      # type, seq, length
+CRC = struct.Struct('<H')
+HEADER_SIZE = len(SYNC) + HEADER.size
+OVERHEAD = HEADER_SIZE + CRC.size   # bytes of a frame besides its payload
+MAX_PAYLOAD = 64                    # longer length fields are treated as corruption
+
+PROTOCOL_MAJOR = 1
+PROTOCOL_MINOR = 0
+
+# host -> device
+HELLO = 0x01
+COMMAND = 0x02
+HEARTBEAT = 0x03
+# device -> host
+HELLO_ACK = 0x81
+SAMPLE = 0x80
+DEVICE_HEARTBEAT = 0x83
+
+FLAG_ENCODER = 0x01
+FLAG_TORQUE = 0x02
+
+HELLO_PAYLOAD = struct.Struct('<BB')                 # major, minor
+# major, minor, rate Hz, adc bits, dac bits, flags
+HELLO_ACK_PAYLOAD = struct.Struct('<BBHBBB')
+# tick, adc p1, adc p2, encoder, adc torque, status
+SAMPLE_PAYLOAD = struct.Struct('<IHHiHB')
+COMMAND_PAYLOAD = struct.Struct('<HH')               # dac u1, dac u2
+# host frames received, CRC errors, device watchdog trips, state
+DEVICE_HEARTBEAT_PAYLOAD = struct.Struct('<IIIB')
+
+NAMES = {HELLO: 'HELLO', COMMAND: 'COMMAND', HEARTBEAT: 'HEARTBEAT', HELLO_ACK: 'HELLO_ACK',
+         SAMPLE: 'SAMPLE', DEVICE_HEARTBEAT: 'DEVICE_HEARTBEAT'}
+PAYLOADS = {HELLO: HELLO_PAYLOAD, COMMAND: COMMAND_PAYLOAD, HEARTBEAT: None,
+            HELLO_ACK: HELLO_ACK_PAYLOAD, SAMPLE: SAMPLE_PAYLOAD,
+            DEVICE_HEARTBEAT: DEVICE_HEARTBEAT_PAYLOAD}
+
+
+class ProtocolError(ValueError):
+    """A well-framed frame whose content is wrong (unknown type, bad payload length)."""
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE of data (check value: crc16(b'123456789') == 0x29B1)."""
+    return binascii.crc_hqx(data, 0xFFFF)
+
+
+def encode_frame(frame_type: int, seq: int, payload: bytes = b'') -> bytes:
+    if not 0 <= frame_type <= 0xFF:
+        raise ValueError(f'frame type {frame_type} is not a byte')
+    if len(payload) > MAX_PAYLOAD:
+        raise ValueError(f'payload of {len(payload)} bytes > {MAX_PAYLOAD}')
+    body = HEADER.pack(frame_type, seq & 0xFFFF, len(payload)) + payload
+    return SYNC + body + CRC.pack(crc16(body))
+
+
+@dataclass(frozen=True)
+class Frame:
+    type: int
+    seq: int
+    payload: bytes
+
+    @property
+    def name(self) -> str:
+        return NAMES.get(self.type, f'0x{self.type:02x}')
+
+    def fields(self) -> tuple:
+        """The payload unpacked by the frame type's struct (ProtocolError if it does not fit)."""
+        if self.type not in PAYLOADS:
+            raise ProtocolError(f'unknown frame type 0x{self.type:02x}')
+        layout = PAYLOADS[self.type]
+        size = 0 if layout is None else layout.size
+        if len(self.payload) != size:
+            raise ProtocolError(f'{self.name} payload of {len(self.payload)} bytes, '
+                                f'expected {size}')
+        return () if layout is None else layout.unpack(self.payload)
+
+
+# ---- payload helpers ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Sample:
+    tick: int
+    adc_p1: int
+    adc_p2: int
+    encoder: int
+    adc_torque: int
+    status: int = 0
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    major: int
+    minor: int
+    rate: int
+    adc_bits: int
+    dac_bits: int
+    flags: int
+
+    @property
+    def has_encoder(self) -> bool:
+        return bool(self.flags & FLAG_ENCODER)
+
+    @property
+    def has_torque(self) -> bool:
+        return bool(self.flags & FLAG_TORQUE)
+
+
+def hello(seq: int, major: int = PROTOCOL_MAJOR, minor: int = PROTOCOL_MINOR) -> bytes:
+    return encode_frame(HELLO, seq, HELLO_PAYLOAD.pack(major, minor))
+
+
+def hello_ack(seq: int, info: DeviceInfo) -> bytes:
+    return encode_frame(HELLO_ACK, seq, HELLO_ACK_PAYLOAD.pack(
+        info.major, info.minor, info.rate, info.adc_bits, info.dac_bits, info.flags))
+
+
+def command(seq: int, dac1: int, dac2: int) -> bytes:
+    return encode_frame(COMMAND, seq, COMMAND_PAYLOAD.pack(dac1, dac2))
+
+
+def heartbeat(seq: int) -> bytes:
+    return encode_frame(HEARTBEAT, seq)
+
+
+def sample(seq: int, s: Sample) -> bytes:
+    return encode_frame(SAMPLE, seq, SAMPLE_PAYLOAD.pack(
+        s.tick & 0xFFFFFFFF, s.adc_p1, s.adc_p2, s.encoder, s.adc_torque, s.status))
+
+
+def device_heartbeat(seq: int, rx_frames: int, rx_crc_errors: int, watchdog_trips: int,
+                     state: int) -> bytes:
+    return encode_frame(DEVICE_HEARTBEAT, seq, DEVICE_HEARTBEAT_PAYLOAD.pack(
+        rx_frames & 0xFFFFFFFF, rx_crc_errors & 0xFFFFFFFF, watchdog_trips & 0xFFFFFFFF, state))
+
+
+def parse_sample(frame: Frame) -> Sample:
+    return Sample(*frame.fields())
+
+
+def parse_hello_ack(frame: Frame) -> DeviceInfo:
+    return DeviceInfo(*frame.fields())
+
+
+# ---- decoding ----------------------------------------------------------------------------------
+class Decoder:
+    """Streaming decoder: feed() bytes as they come, get the complete, valid frames.
+
+    Bytes before a SYNC are garbage (counted). A header with a length > MAX_PAYLOAD or a frame
+    whose CRC does not match counts as a CRC error; the decoder then drops the first SYNC byte
+    only and searches again, so a valid frame hidden behind a false SYNC is never lost.
+    """
+
+    def __init__(self):
+        self._buffer = bytearray()
+        self.garbage_bytes = 0
+        self.crc_errors = 0
+        self.frames = 0
+
+    def reset(self) -> None:
+        self._buffer.clear()
+
+    def feed(self, data: bytes) -> list[Frame]:
+        buf = self._buffer
+        buf.extend(data)
+        frames = []
+        while True:
+            start = buf.find(SYNC)
+            if start < 0:
+                # keep a trailing first SYNC byte: the second may come with the next read
+                keep = 1 if buf.endswith(SYNC[:1]) else 0
+                self.garbage_bytes += len(buf) - keep
+                del buf[:len(buf) - keep]
+                break
+            if start:
+                self.garbage_bytes += start
+                del buf[:start]
+            if len(buf) < HEADER_SIZE:
+                break
+            frame_type, seq, length = HEADER.unpack_from(buf, len(SYNC))
+            if length > MAX_PAYLOAD:
+                self.crc_errors += 1
+                del buf[:1]
+                continue
+            end = HEADER_SIZE + length + CRC.size
+            if len(buf) < end:
+                break
+            body = bytes(buf[len(SYNC):HEADER_SIZE + length])
+            (crc,) = CRC.unpack_from(buf, HEADER_SIZE + length)
+            if crc != crc16(body):
+                self.crc_errors += 1
+                del buf[:1]
+                continue
+            frames.append(Frame(frame_type, seq, body[HEADER.size:]))
+            self.frames += 1
+            del buf[:end]
+        return frames
+
+
+class SequenceTracker:
+    """Counts frames lost from the gaps in the 16-bit sequence numbers of one direction."""
+
+    def __init__(self):
+        self.last = None
+        self.lost = 0
+        self.gaps = 0
+
+    def reset(self) -> None:
+        self.last = None
+
+    def update(self, seq: int) -> int:
+        """Record seq; returns the number of frames missing before it (0 if in order)."""
+        missing = 0
+        if self.last is not None:
+            missing = (seq - self.last - 1) & 0xFFFF
+            if missing > 0x8000:   # a repeat or reordering, not a loss of 32768 frames
+                missing = 0
+            if missing:
+                self.gaps += 1
+                self.lost += missing
+        self.last = seq
+        return missing

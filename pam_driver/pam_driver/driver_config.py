@@ -1,0 +1,97 @@
+"""Parameters of driver_node: the table, their validation and the --help text (no ROS in here)."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from pam_driver.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
+                                    check_array, check_command, fail, merge_overrides,
+                                    wants_help)
+from pam_driver.node_params import usage_text as _usage_text
+
+__all__ = ['PARAMETERS', 'ConfigError', 'build_config', 'usage_text', 'wants_help']
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec('port', '/dev/ttyUSB0', 'string', '',
+              'Serial device of the DAQ board (a pam-emulator --link path works too).'),
+    ParamSpec('baud', 921600, 'integer', 'baud',
+              'Baud rate (ignored by USB CDC and ptys; 1 kHz samples need >= 230400).',
+              range=(9600, 12000000)),
+    ParamSpec('calibration_file', 'default', 'string', '',
+              "Calibration YAML (counts <-> SI units); 'default': the shipped "
+              'config/driver_calibration.yaml.'),
+    ParamSpec('watchdog_timeout', 0.05, 'double', 's',
+              'No valid valve_command for this long -> safe_output, disarmed until ~/arm. '
+              '0: no watchdog.', range=(0.0, 10.0)),
+    ParamSpec('safe_output', [0.0, 0.0], 'double[]', 'V',
+              'Valve voltages [u1, u2] of the safe state (default: vent both muscles).'),
+    ParamSpec('valve_limits', [0.0, 10.0], 'double[]', 'V',
+              'Commands are clipped to [min, max] (counted and reported).'),
+    ParamSpec('arm_at_start', True, 'bool', '',
+              'Start armed: the first valid command is applied. False: wait for ~/arm.'),
+    ParamSpec('pressure_limits', [50000.0, 900000.0], 'double[]', 'Pa',
+              'Plausible absolute pressures [min, max]; readings outside (or outside the '
+              "sensor's valid voltages) for 5 samples in a row are a sensor fault -> safe "
+              'output.'),
+    ParamSpec('stuck_time', 0.5, 'double', 's',
+              'A pressure ADC reading identical for this long is a stuck sensor -> safe '
+              'output. 0: no check.', range=(0.0, 60.0)),
+    ParamSpec('handshake_timeout', 0.5, 'double', 's',
+              'Wait this long for HELLO_ACK after HELLO.', range=(0.01, 10.0)),
+    ParamSpec('stream_timeout', 0.2, 'double', 's',
+              'No sample for this long -> the device is lost: reconnect.', range=(0.01, 10.0)),
+    ParamSpec('heartbeat_period', 0.05, 'double', 's',
+              'Period of the HEARTBEAT frames to the device.', range=(0.005, 1.0)),
+    ParamSpec('reconnect_backoff', [0.1, 2.0], 'double[]', 's',
+              'Reconnect delays [first, max]: doubled after each failed attempt.'),
+    ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published headers.'),
+)
+
+SUMMARY = (
+    'Hardware driver of the PAM rig (pam_driver): the DAQ board over a serial port',
+    "(pam_driver/PROTOCOL.md). Default namespace '/pam'. Same topics as sim_node:",
+    '  publishes   pressures       pam_interfaces/Pressures         P1, P2 (Pa abs), per sample',
+    '  publishes   joint_measured  pam_interfaces/JointMeasurement  encoder angle, torque meter '
+    '(when fitted)',
+    '  subscribes  valve_command   pam_interfaces/ValveCommand      u1, u2 (V)',
+    '  publishes   ~/applied_command pam_interfaces/ValveCommand    what the valves get',
+    '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
+    '  services    ~/arm, ~/estop  std_srvs/Trigger                 re-arm after a safe stop; '
+    'e-stop',
+)
+
+
+def usage_text(prog: str = 'driver_node') -> str:
+    return _usage_text(prog, SUMMARY, PARAMETERS, examples=(
+        f'{prog} --ros-args -p port:=/dev/ttyACM0',
+        f'{prog} --ros-args --params-file <share>/pam_driver/config/driver_node.yaml',
+    ))
+
+
+def build_config(overrides: Mapping[str, Any] | None = None) -> dict:
+    """Checked parameter values plus 'calibration' (a Calibration). Raises ConfigError."""
+    from pam_driver.calibration import CalibrationError, load
+    values = check_all(PARAMETERS, merge_overrides(PARAMETERS, overrides))
+    if not values['port'].strip():
+        fail('port', 'empty')
+    values['safe_output'] = check_command('safe_output', values['safe_output'])
+    limits = check_command('valve_limits', values['valve_limits'])
+    if limits[0] >= limits[1]:
+        fail('valve_limits', f'need min < max, got {limits}')
+    values['valve_limits'] = limits
+    p = check_array('pressure_limits', values['pressure_limits'], 2, '[min Pa, max Pa]')
+    if not 0.0 < p[0] < p[1]:
+        fail('pressure_limits', f'need 0 < min < max, got {p}')
+    values['pressure_limits'] = p
+    b = check_array('reconnect_backoff', values['reconnect_backoff'], 2, '[first s, max s]')
+    if not 0.0 < b[0] <= b[1] <= 60.0:
+        fail('reconnect_backoff', f'need 0 < first <= max <= 60 s, got {b}')
+    values['reconnect_backoff'] = b
+    try:
+        values['calibration'] = load(values['calibration_file'])
+    except CalibrationError as exc:
+        fail('calibration_file', str(exc))
+    return values
+
+
+__all__ += ['SUMMARY', 'U_MAX', 'U_MIN']

@@ -1,0 +1,509 @@
+"""driver_node: the hardware driver of the PAM rig, a drop-in for sim_node.
+
+It talks to the DAQ board over a serial port with the protocol of pam_driver/PROTOCOL.md
+(pam_driver.daq_protocol, pyserial) and converts with the calibration YAML
+(pam_driver.calibration). Run `driver_node --help` for the parameters.
+
+Topics (same contract as sim_node; relative names under '/pam' by default): publishes
+`pressures` per sample (1 kHz, stamped with the node clock on receipt) and, when the board
+reports an encoder and a torque meter fitted, `joint_measured` (angle from the encoder, torque
+from the torque meter, angular velocity by finite difference of the angle); subscribes
+`valve_command`; publishes `~/applied_command` (the voltages the valves actually get, on each
+change) and `/diagnostics`. Services `~/arm` and `~/estop` (std_srvs/Trigger).
+
+Threads: a reader thread owns the serial connection (connect, handshake, read samples, send the
+heartbeat, the command watchdog, reconnect with exponential backoff); the executor thread
+(EventsExecutor via run_node) runs the subscription, services and the diagnostics timer and
+writes COMMAND frames under a lock.
+
+Safety (the choice, documented in README and PROTOCOL.md): the driver is either ARMED (valid
+commands, clipped to valve_limits, go to the valves) or SAFE (safe_output, default 0 V = vent
+both muscles). It goes SAFE, latched, on: the command watchdog (no valid command for
+watchdog_timeout after one was received), ~/estop, a pressure sensor fault (out of range or stuck),
+the device lost (unplugged, silent, handshake failed) and any internal exception. It goes back to
+ARMED only through ~/arm, which is refused while the device is not connected or a sensor fault
+persists; even then the valves stay at safe_output until the next valid command. At shutdown the
+driver sends safe_output before closing the port. The board itself vents both valves when no host
+frame arrives for 250 ms (its own watchdog).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+
+import rclpy
+import rclpy.utilities
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
+
+from pam_driver import daq_protocol as proto
+from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_driver.driver_config import PARAMETERS, build_config, usage_text, wants_help
+from pam_driver.executors import run_node
+from pam_driver.node_params import declare_parameters, unknown_overrides
+from pam_driver.timing import RateStatistics
+
+NODE_NAME = 'driver_node'
+DEFAULT_NAMESPACE = '/pam'
+HARDWARE_ID = 'pam-daq-board'
+DIAGNOSTICS_PERIOD = 1.0
+LOG_THROTTLE = 1.0
+OUT_OF_RANGE_SAMPLES = 5      # consecutive implausible readings -> sensor fault
+
+SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        depth=100, durability=DurabilityPolicy.VOLATILE)
+
+
+class DeviceLost(Exception):
+    """The device stopped answering (no samples, failed handshake)."""
+
+
+class DriverNode(Node):
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        values = declare_parameters(self, PARAMETERS)
+        for name in unknown_overrides(self, PARAMETERS):
+            self.get_logger().warning(f"ignoring unknown parameter '{name}' (see "
+                                      'driver_node --help)')
+        self.config = build_config(values)
+        self.cal = self.config['calibration']
+        self._frame_id = self.config['frame_id']
+        self._stop = threading.Event()
+        self._io_lock = threading.Lock()     # the serial object and writes
+        self._lock = threading.Lock()        # state and counters
+        self._serial = None
+        self._tx_seq = 0
+        self._decoder = proto.Decoder()
+        self._rx_seq = proto.SequenceTracker()
+        self._stats = RateStatistics(1e-3, time.monotonic())
+        # safety state
+        self._armed = bool(self.config['arm_at_start'])
+        self._safe_reason = '' if self._armed else 'not armed at start'
+        self._output = tuple(self.config['safe_output'])
+        self._last_command_time = None       # monotonic time of the last valid command (armed)
+        self._watchdog_trips = 0
+        self._last_trip_ms = math.nan
+        self._estops = 0
+        # sensor sanity
+        self._out_of_range_run = [0, 0]
+        self._stuck = [[None, 0.0], [None, 0.0]]   # last count, since when
+        self._sensor_fault = ''
+        self._sensor_faults = 0
+        # counters
+        self._connected = False
+        self._connects = 0
+        self._disconnects = 0
+        self._handshake_failures = 0
+        self._last_error = ''
+        self._device = None
+        self._device_heartbeat = None
+        self._samples = 0
+        self._protocol_errors = 0
+        self._internal_errors = 0
+        self._commands = 0
+        self._commands_clipped = 0
+        self._commands_nonfinite = 0
+        self._commands_ignored = 0
+        self._reported = {}
+        self._prev_angle = None
+
+        self._pub_pressures = self.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
+        self._pub_joint = self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS)
+        self._pub_applied = self.create_publisher(ValveCommand, '~/applied_command', 10)
+        self._sub = self.create_subscription(ValveCommand, 'valve_command', self._on_command,
+                                             SAMPLE_QOS)
+        self.create_service(Trigger, '~/arm', self._on_arm)
+        self.create_service(Trigger, '~/estop', self._on_estop)
+        self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: DAQ board',
+                                                 HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
+        self.get_logger().info(
+            f"port {self.config['port']} at {self.config['baud']} baud, calibration "
+            f'{self.cal.source}; watchdog {self.config["watchdog_timeout"] * 1e3:g} ms, safe '
+            f'output {list(self._output)} V, {"armed" if self._armed else "disarmed"}')
+        sys.setswitchinterval(0.0005)
+        self._thread = threading.Thread(target=self._reader_loop, name='driver_reader',
+                                        daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ output
+    def _write(self, data: bytes) -> bool:
+        with self._io_lock:
+            ser = self._serial
+            if ser is None:
+                return False
+            try:
+                ser.write(data)
+                return True
+            except Exception as exc:  # noqa: BLE001 - the reader thread notices and reconnects
+                self._last_error = f'write failed: {type(exc).__name__}: {exc}'
+                return False
+
+    def _next_seq(self) -> int:
+        seq = self._tx_seq
+        self._tx_seq = (self._tx_seq + 1) & 0xFFFF
+        return seq
+
+    def _send_output(self, u1: float, u2: float) -> None:
+        """Send (u1, u2) V to the valves and publish ~/applied_command if it changed."""
+        changed = (u1, u2) != self._output
+        self._output = (u1, u2)
+        with self._io_lock:
+            seq = self._next_seq()
+        self._write(proto.command(seq, self.cal.dac_counts(u1), self.cal.dac_counts(u2)))
+        if changed:
+            msg = ValveCommand()
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.header.frame_id = self._frame_id
+            msg.u1, msg.u2 = float(u1), float(u2)
+            try:
+                self._pub_applied.publish(msg)
+            except Exception:  # noqa: BLE001 - shutting down
+                pass
+
+    def _go_safe(self, reason: str, override: bool = False) -> None:
+        """safe_output now, disarmed (latched) until ~/arm. The reason reported is the first
+        one since the last arm, unless override (e-stop, shutdown)."""
+        with self._lock:
+            was_armed = self._armed
+            self._armed = False
+            if was_armed or override or not self._safe_reason:
+                self._safe_reason = reason
+            self._last_command_time = None
+            self._send_output(*self.config['safe_output'])
+        if was_armed or override:
+            self.get_logger().warning(f'safe output {list(self.config["safe_output"])} V: '
+                                      f'{reason}; call ~/arm to resume')
+
+    # ------------------------------------------------------------------ ROS callbacks
+    def _on_command(self, msg: ValveCommand) -> None:
+        u = (msg.u1, msg.u2)
+        if not all(math.isfinite(v) for v in u):
+            with self._lock:
+                self._commands_nonfinite += 1
+            self.get_logger().warning(f'non-finite valve_command {u} ignored',
+                                      throttle_duration_sec=LOG_THROTTLE)
+            return
+        low, high = self.config['valve_limits']
+        clipped = tuple(min(max(v, low), high) for v in u)
+        with self._lock:
+            self._commands += 1
+            if clipped != u:
+                self._commands_clipped += 1
+            if not self._armed or not self._connected:
+                self._commands_ignored += 1
+                return
+            self._last_command_time = time.monotonic()
+            self._send_output(*clipped)
+
+    def _on_arm(self, request, response):
+        with self._lock:
+            if not self._connected:
+                response.success, response.message = False, 'refused: device not connected'
+            elif self._sensor_fault:
+                response.success = False
+                response.message = f'refused: sensor fault: {self._sensor_fault}'
+            else:
+                previous = self._safe_reason
+                self._armed = True
+                self._safe_reason = ''
+                self._last_command_time = None
+                response.success = True
+                response.message = (f'armed (was safe: {previous or "-"}); the next valid '
+                                    'valve_command is applied')
+        self.get_logger().info(f'~/arm: {response.message}')
+        return response
+
+    def _on_estop(self, request, response):
+        with self._lock:
+            self._estops += 1
+        self._go_safe('e-stop (~/estop)', override=True)
+        response.success = True
+        response.message = f'safe output {list(self.config["safe_output"])} V; ~/arm to resume'
+        return response
+
+    # ------------------------------------------------------------------ serial thread
+    def _reader_loop(self) -> None:
+        import serial
+        first, longest = self.config['reconnect_backoff']
+        backoff = first
+        while not self._stop.is_set():
+            try:
+                self._connect(serial)
+                backoff = first
+                self._stream()
+            except DeviceLost as exc:
+                self._last_error = str(exc)
+            except (serial.SerialException, OSError) as exc:
+                self._last_error = f'{type(exc).__name__}: {exc}'
+            except Exception as exc:  # noqa: BLE001 - never die: safe output, report, retry
+                with self._lock:
+                    self._internal_errors += 1
+                self._last_error = f'internal error: {type(exc).__name__}: {exc}'
+                self.get_logger().error(self._last_error)
+                self._go_safe(self._last_error)
+            finally:
+                self._disconnect()
+            if self._stop.wait(backoff):
+                break
+            backoff = min(2.0 * backoff, longest)
+
+    def _connect(self, serial) -> None:
+        ser = serial.Serial(self.config['port'], self.config['baud'], timeout=0.002,
+                            write_timeout=0.1)
+        ser.reset_input_buffer()
+        with self._io_lock:
+            self._serial = ser
+            seq = self._next_seq()
+        self._decoder.reset()
+        self._rx_seq.reset()
+        self._write(proto.hello(seq))
+        deadline = time.monotonic() + self.config['handshake_timeout']
+        info = None
+        while info is None and time.monotonic() < deadline and not self._stop.is_set():
+            for frame in self._decoder.feed(ser.read(max(ser.in_waiting, 1))):
+                if frame.type == proto.HELLO_ACK:
+                    info = proto.parse_hello_ack(frame)
+                    break
+        if info is None:
+            with self._lock:
+                self._handshake_failures += 1
+            raise DeviceLost('no HELLO_ACK within handshake_timeout')
+        if info.major != proto.PROTOCOL_MAJOR:
+            with self._lock:
+                self._handshake_failures += 1
+            raise DeviceLost(f'device speaks protocol {info.major}.{info.minor}, driver '
+                             f'{proto.PROTOCOL_MAJOR}.{proto.PROTOCOL_MINOR}')
+        if info.adc_bits != self.cal.adc_bits or info.dac_bits != self.cal.dac_bits:
+            self.get_logger().warning(
+                f'device reports {info.adc_bits}-bit ADC / {info.dac_bits}-bit DAC, calibration '
+                f'says {self.cal.adc_bits} / {self.cal.dac_bits}', throttle_duration_sec=10.0)
+        with self._lock:
+            self._device = info
+            self._connected = True
+            self._connects += 1
+            # whatever the valves had before: start from the safe output
+            self._send_output(*self.config['safe_output'])
+        self._prev_angle = None
+        self.get_logger().info(
+            f'connected to {self.config["port"]}: protocol {info.major}.{info.minor}, '
+            f'{info.rate} Hz, encoder {"yes" if info.has_encoder else "no"}, torque meter '
+            f'{"yes" if info.has_torque else "no"}')
+
+    def _disconnect(self) -> None:
+        with self._lock:
+            was = self._connected
+            self._connected = False
+            if was:
+                self._disconnects += 1
+        with self._io_lock:
+            ser, self._serial = self._serial, None
+        if ser is not None:
+            try:
+                ser.close()
+            except Exception:  # noqa: BLE001
+                pass
+        if was and not self._stop.is_set():
+            self.get_logger().error(f'device lost: {self._last_error}; reconnecting')
+            self._go_safe(f'device lost ({self._last_error})')
+
+    def _stream(self) -> None:
+        ser = self._serial
+        last_sample = time.monotonic()
+        next_heartbeat = last_sample
+        while not self._stop.is_set():
+            data = ser.read(max(ser.in_waiting, 1))
+            now = time.monotonic()
+            if data:
+                for frame in self._decoder.feed(data):
+                    self._rx_seq.update(frame.seq)
+                    try:
+                        if frame.type == proto.SAMPLE:
+                            self._on_sample(proto.parse_sample(frame), now)
+                            last_sample = now
+                        elif frame.type == proto.DEVICE_HEARTBEAT:
+                            self._device_heartbeat = frame.fields()
+                        elif frame.type == proto.HELLO_ACK:
+                            pass
+                        else:
+                            frame.fields()  # raises for an unknown type
+                    except proto.ProtocolError:
+                        with self._lock:
+                            self._protocol_errors += 1
+            self._check_watchdog(now)
+            if now >= next_heartbeat:
+                with self._io_lock:
+                    seq = self._next_seq()
+                if not self._write(proto.heartbeat(seq)):
+                    raise DeviceLost(self._last_error or 'write failed')
+                next_heartbeat = now + self.config['heartbeat_period']
+            if now - last_sample > self.config['stream_timeout']:
+                raise DeviceLost(f'no sample for {self.config["stream_timeout"] * 1e3:g} ms')
+
+    def _check_watchdog(self, now: float) -> None:
+        timeout = self.config['watchdog_timeout']
+        if timeout <= 0.0:
+            return
+        with self._lock:
+            last = self._last_command_time
+            if not self._armed or last is None or now - last <= timeout:
+                return
+            self._watchdog_trips += 1
+            self._last_trip_ms = (now - last) * 1e3
+            since = self._last_trip_ms
+        self._go_safe(f'command watchdog: no valve_command for {since:.1f} ms')
+
+    def _on_sample(self, s: proto.Sample, now: float) -> None:
+        cal = self.cal
+        p = (cal.pressure(0, s.adc_p1), cal.pressure(1, s.adc_p2))
+        self._check_sensors((s.adc_p1, s.adc_p2), p, now)
+        stamp = self.get_clock().now().to_msg()
+        msg = Pressures()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self._frame_id
+        msg.p1, msg.p2 = p
+        self._pub_pressures.publish(msg)
+        info = self._device
+        if info is not None and info.has_encoder and info.has_torque:
+            angle = cal.angle(s.encoder)
+            h = 1.0 / info.rate
+            joint = JointMeasurement()
+            joint.header = msg.header
+            joint.angle = angle
+            joint.angular_velocity = (0.0 if self._prev_angle is None
+                                      else (angle - self._prev_angle) / h)
+            joint.torque = cal.torque(s.adc_torque)
+            self._prev_angle = angle
+            self._pub_joint.publish(joint)
+        self._stats.record(0.0)
+        with self._lock:
+            self._samples += 1
+
+    def _check_sensors(self, counts, pressures, now: float) -> None:
+        low, high = self.config['pressure_limits']
+        stuck_time = self.config['stuck_time']
+        problems = []
+        for i in (0, 1):
+            ok = self.cal.pressure_volts_valid(i, counts[i]) and low <= pressures[i] <= high
+            self._out_of_range_run[i] = 0 if ok else self._out_of_range_run[i] + 1
+            if self._out_of_range_run[i] >= OUT_OF_RANGE_SAMPLES:
+                problems.append(f'P{i + 1} out of range ({pressures[i]:.0f} Pa, '
+                                f'{self.cal.adc_volts(counts[i]):.3f} V)')
+            last = self._stuck[i]
+            if counts[i] != last[0]:
+                last[0], last[1] = counts[i], now
+            elif stuck_time > 0.0 and now - last[1] >= stuck_time:
+                problems.append(f'P{i + 1} stuck at {counts[i]} counts for '
+                                f'{now - last[1]:.2f} s')
+        fault = '; '.join(problems)
+        if fault and not self._sensor_fault:
+            with self._lock:
+                self._sensor_faults += 1
+            self.get_logger().error(f'pressure sensor fault: {fault}')
+        elif self._sensor_fault and not fault:
+            self.get_logger().info('pressure sensors plausible again; ~/arm to resume')
+        self._sensor_fault = fault
+        if fault and (self._armed or self._output != tuple(self.config['safe_output'])):
+            self._go_safe(f'pressure sensor fault: {fault}')
+
+    # ------------------------------------------------------------------ shutdown
+    def stop(self) -> None:
+        """Safe output to the device, stop the reader thread, close the port."""
+        try:
+            with self._lock:
+                self._armed = False
+                self._safe_reason = 'shutdown'
+                self._send_output(*self.config['safe_output'])
+        except Exception:  # noqa: BLE001
+            pass
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+
+    # ------------------------------------------------------------------ diagnostics
+    def _report(self):
+        window = self._stats.window(time.monotonic())
+        d = self._decoder
+        with self._lock:
+            info = self._device
+            values = {
+                'port': self.config['port'],
+                'connected': self._connected,
+                'device protocol': f'{info.major}.{info.minor}' if info else 'none',
+                'encoder fitted': bool(info and info.has_encoder),
+                'torque meter fitted': bool(info and info.has_torque),
+                'achieved rate (Hz)': window.achieved_rate if window.samples else 0.0,
+                'samples received': self._samples,
+                'connects': self._connects,
+                'reconnects': max(self._connects - 1, 0),
+                'disconnects': self._disconnects,
+                'handshake failures': self._handshake_failures,
+                'crc errors': d.crc_errors,
+                'garbage bytes': d.garbage_bytes,
+                'lost frames': self._rx_seq.lost,
+                'sequence gaps': self._rx_seq.gaps,
+                'protocol errors': self._protocol_errors,
+                'internal errors': self._internal_errors,
+                'armed': self._armed,
+                'safe reason': self._safe_reason or 'none',
+                'output u1 (V)': self._output[0],
+                'output u2 (V)': self._output[1],
+                'watchdog timeout (ms)': self.config['watchdog_timeout'] * 1e3,
+                'watchdog trips': self._watchdog_trips,
+                'last watchdog trip after (ms)': self._last_trip_ms,
+                'e-stops': self._estops,
+                'sensor fault': self._sensor_fault or 'none',
+                'sensor faults': self._sensor_faults,
+                'commands received': self._commands,
+                'commands clipped': self._commands_clipped,
+                'non-finite commands': self._commands_nonfinite,
+                'commands ignored (safe)': self._commands_ignored,
+                'last error': self._last_error or 'none',
+            }
+            if self._device_heartbeat is not None:
+                rx, crc, trips, _ = self._device_heartbeat
+                values.update({'device rx frames': rx, 'device rx crc errors': crc,
+                               'device watchdog trips': trips})
+            connected, armed, fault = self._connected, self._armed, self._sensor_fault
+        counters = ('crc errors', 'garbage bytes', 'lost frames', 'protocol errors',
+                    'commands clipped', 'non-finite commands', 'disconnects')
+        new = {k: values[k] - self._reported.get(k, 0) for k in counters}
+        self._reported = {k: values[k] for k in counters}
+        problems = []
+        level = OK
+        if not connected:
+            level = ERROR
+            problems.append(f'device not connected ({self._last_error or "connecting"})')
+        if fault:
+            level = ERROR
+            problems.append(f'pressure sensor fault: {fault}')
+        if not armed:
+            level = max(level, WARN)
+            problems.append(f'safe output: {self._safe_reason}')
+        recent = [f'{n} {k}' for k, n in new.items() if n]
+        if recent:
+            level = max(level, WARN)
+            problems.append('in the last window: ' + ', '.join(recent))
+        message = '; '.join(problems) or f'armed, {values["achieved rate (Hz)"]:.1f} Hz'
+        return level, message, values
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else list(args)
+    if wants_help(argv):
+        sys.stdout.write(usage_text())
+        return 0
+    leftover = rclpy.utilities.remove_ros_args(argv)[1:]
+    if leftover:
+        sys.stderr.write(f'driver_node: error: unknown argument {leftover[0]!r}; parameters are '
+                         'set with --ros-args -p NAME:=VALUE (see driver_node --help)\n')
+        return 2
+    return run_node(DriverNode, NODE_NAME, args=argv, stop=lambda node: node.stop())
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""The DAQ serial protocol without ROS: framing, CRC, round trips, resynchronisation."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+
+from pam_driver import daq_protocol as proto
+
+
+def test_crc_check_value():
+    assert proto.crc16(b'123456789') == 0x29B1   # CRC-16/CCITT-FALSE
+
+
+def test_round_trip_every_frame_type():
+    info = proto.DeviceInfo(1, 0, 1000, 12, 12, proto.FLAG_ENCODER | proto.FLAG_TORQUE)
+    sample = proto.Sample(123456, 4095, 0, -40000, 2048, 1)
+    stream = (proto.hello(1) + proto.hello_ack(2, info) + proto.command(3, 4095, 17)
+              + proto.heartbeat(4) + proto.sample(5, sample)
+              + proto.device_heartbeat(6, 10, 2, 1, 0))
+    d = proto.Decoder()
+    frames = d.feed(stream)
+    assert [f.type for f in frames] == [proto.HELLO, proto.HELLO_ACK, proto.COMMAND,
+                                        proto.HEARTBEAT, proto.SAMPLE, proto.DEVICE_HEARTBEAT]
+    assert [f.seq for f in frames] == [1, 2, 3, 4, 5, 6]
+    assert frames[0].fields() == (proto.PROTOCOL_MAJOR, proto.PROTOCOL_MINOR)
+    assert proto.parse_hello_ack(frames[1]) == info
+    assert frames[2].fields() == (4095, 17)
+    assert frames[3].fields() == ()
+    assert proto.parse_sample(frames[4]) == sample
+    assert frames[5].fields() == (10, 2, 1, 0)
+    assert d.garbage_bytes == 0 and d.crc_errors == 0
+
+
+def test_byte_by_byte_feeding():
+    frame = proto.sample(9, proto.Sample(1, 2, 3, 4, 5))
+    d = proto.Decoder()
+    got = []
+    for b in frame * 3:
+        got += d.feed(bytes([b]))
+    assert len(got) == 3 and d.garbage_bytes == 0
+
+
+def test_garbage_and_crc_errors_resynchronise():
+    rng = random.Random(1)
+    frames = [proto.sample(i, proto.Sample(i, i, i, i, i)) for i in range(200)]
+    stream = bytearray()
+    corrupted = 0
+    for i, f in enumerate(frames):
+        if i % 7 == 3:
+            stream += bytes(rng.randrange(256) for _ in range(rng.randint(1, 20)))
+        if i % 11 == 5:
+            b = bytearray(f)
+            b[rng.randrange(proto.HEADER_SIZE, len(b))] ^= 0x10
+            f = bytes(b)
+            corrupted += 1
+        stream += f
+    d = proto.Decoder()
+    got = []
+    for i in range(0, len(stream), 13):
+        got += d.feed(bytes(stream[i:i + 13]))
+    seqs = [f.seq for f in got]
+    expected = [i for i in range(200) if i % 11 != 5]
+    assert seqs == expected
+    assert d.crc_errors >= corrupted
+    assert d.garbage_bytes > 0
+    tracker = proto.SequenceTracker()
+    for s in seqs:
+        tracker.update(s)
+    assert tracker.lost == corrupted
+
+
+def test_false_sync_does_not_hide_a_frame():
+    frame = proto.heartbeat(7)
+    d = proto.Decoder()
+    got = d.feed(proto.SYNC + bytes([0x80, 0, 0, 30]) + frame)   # a header promising 30 bytes
+    got += d.feed(proto.heartbeat(8) * 5)
+    assert [f.seq for f in got][:2] == [7, 8]
+    assert d.crc_errors >= 1
+
+
+def test_oversized_length_is_rejected():
+    d = proto.Decoder()
+    got = d.feed(proto.SYNC + bytes([0x80, 0, 0, 200]) + proto.heartbeat(1))
+    assert [f.seq for f in got] == [1] and d.crc_errors == 1
+
+
+def test_sequence_wraps_and_bad_payload():
+    t = proto.SequenceTracker()
+    for s in (65534, 65535, 0, 3):
+        t.update(s)
+    assert t.lost == 2 and t.gaps == 1
+    with pytest.raises(proto.ProtocolError):
+        proto.Frame(proto.SAMPLE, 0, b'\x00').fields()
+    with pytest.raises(proto.ProtocolError):
+        proto.Frame(0x42, 0, b'').fields()

@@ -1,0 +1,35 @@
+"""driver_node and pam-emulator command lines: --help and configuration errors."""
+
+from __future__ import annotations
+
+import subprocess
+
+from pam_driver.testing import child_env, executable
+
+
+def _run(name, *args, timeout=30.0):
+    return subprocess.run([executable(name, 'pam_driver'), *args], capture_output=True,
+                          text=True, timeout=timeout, env=child_env(0))
+
+
+def test_help_texts():
+    out = _run('driver_node', '--help')
+    assert out.returncode == 0
+    for word in ('port', 'calibration_file', 'watchdog_timeout', 'safe_output', '~/arm',
+                 'reconnect_backoff'):
+        assert word in out.stdout
+    out = _run('pam-emulator', '--help')
+    assert out.returncode == 0
+    for word in ('--link', '--locked', '--mismatch', '--garbage-every', '--disconnect-at',
+                 '--stuck-sensor', '--drop-every'):
+        assert word in out.stdout
+
+
+def test_bad_calibration_is_a_clean_error(tmp_path):
+    bad = tmp_path / 'cal.yaml'
+    bad.write_text('format_version: 1\nadc: {bits: 12}\n')
+    out = _run('driver_node', '--ros-args', '-p', f'calibration_file:={bad}')
+    assert out.returncode == 2, out.stderr
+    assert "adc.vref_volts" in out.stderr and str(bad) in out.stderr
+    out = _run('pam-emulator', '--calibration', str(bad))
+    assert out.returncode == 2 and 'adc.vref_volts' in out.stderr, out.stderr

@@ -1,0 +1,219 @@
+"""driver_node against pam-emulator, both real processes, over a real pseudo-terminal."""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
+from std_srvs.srv import Trigger
+
+from pam_driver import calibration
+
+STARTUP = 45.0
+
+
+class Rig:
+    """pam-emulator + driver_node and the probe's subscriptions."""
+
+    def __init__(self, node_process, probe, helpers, tmp_path, emulator_args=(),
+                 driver_params=()):
+        self.helpers = helpers
+        self.probe = probe
+        link = str(tmp_path / 'pam_daq')
+        self.emulator = node_process('pam-emulator', 'pam_driver', '--link', link,
+                                     *emulator_args, raw=True)
+        self.emulator.wait_for(lambda: os.path.islink(link), STARTUP, 'the emulator pty link')
+        self.pressures = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
+        self.joint = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
+        self.applied = probe.subscribe(ValveCommand, '/pam/driver_node/applied_command')
+        self.diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
+        self.commands = probe.publisher(ValveCommand, '/pam/valve_command')
+        params = []
+        for p in (f'port:={link}', *driver_params):
+            params += ['-p', p]
+        self.driver = node_process('driver_node', 'pam_driver', *params)
+        self.driver.wait_for(lambda: len(self.pressures) > 0, STARTUP, 'the first pressures')
+        node = probe.node
+        self.driver.wait_for(
+            lambda: self.commands.get_subscription_count() > 0
+            and node.count_publishers('/pam/driver_node/applied_command') > 0,
+            10.0, 'valve_command and applied_command matched')
+        time.sleep(0.2)
+
+    def status(self, after: float = 0.0):
+        """The latest driver_node status received after monotonic time `after` (or None)."""
+        arrays = [m for r, m in self.diagnostics.items() if r >= after]
+        statuses = [s for a in arrays for s in a.status if s.name.startswith('driver_node')]
+        return statuses[-1] if statuses else None
+
+    def values(self, after: float = 0.0) -> dict:
+        s = self.status(after)
+        return {kv.key: kv.value for kv in s.values} if s else {}
+
+    def wait_values(self, predicate, timeout: float, what: str) -> dict:
+        self.driver.wait_for(lambda: bool(self.values()) and predicate(self.values()), timeout,
+                             what)
+        return self.values()
+
+    def send(self, u1, u2, duration=0.0, period=0.01):
+        end = time.monotonic() + duration
+        while True:
+            msg = ValveCommand()
+            msg.header.stamp = self.probe.node.get_clock().now().to_msg()
+            msg.u1, msg.u2 = float(u1), float(u2)
+            self.commands.publish(msg)
+            if time.monotonic() >= end:
+                return time.monotonic()
+            time.sleep(period)
+
+    def call(self, service: str) -> Trigger.Response:
+        client = self.probe.node.create_client(Trigger, f'/pam/driver_node/{service}')
+        assert client.wait_for_service(timeout_sec=10.0), f'{service} not available'
+        future = client.call_async(Trigger.Request())
+        assert self.helpers.wait_until(future.done, 10.0), f'{service} call timed out'
+        self.probe.node.destroy_client(client)
+        return future.result()
+
+    def last_applied(self):
+        items = self.applied.messages()
+        return (items[-1].u1, items[-1].u2) if items else None
+
+
+@pytest.fixture
+def rig(node_process, probe, helpers, tmp_path):
+    def start(emulator_args=(), driver_params=()):
+        return Rig(node_process, probe, helpers, tmp_path, emulator_args, driver_params)
+    return start
+
+
+def _mean(values):
+    values = list(values)
+    return sum(values) / len(values)
+
+
+def test_rate_commands_watchdog_arm_and_estop(rig):
+    r = rig()
+    time.sleep(0.5)
+    start = time.monotonic()
+    time.sleep(2.0)
+    window = [m for t, m in r.pressures.items() if start <= t < start + 2.0]
+    stamps = [r.helpers.stamp_ns(m.header.stamp) * 1e-9 for m in window]
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    assert abs(rate - 1000.0) <= 50.0, f'{rate:.1f} Hz'
+    assert len(window) >= 1800, len(window)
+    joints = [m for t, m in r.joint.items() if start <= t < start + 2.0]
+    assert len(joints) >= 0.9 * len(window)
+    assert all(math.isfinite(m.angle) and math.isfinite(m.torque) for m in joints)
+
+    # raising u1 raises P1 (and lowering u2 lowers P2)
+    before = _mean(m.p1 for m in r.pressures.messages()[-20:])
+    r.send(9.0, 1.0, duration=0.8)
+    after = r.pressures.messages()[-20:]
+    assert _mean(m.p1 for m in after) > before + 20e3, (before, after[-1])
+    assert r.last_applied() == (9.0, 1.0)
+
+    # the watchdog: no command for 50 ms -> safe output (vent), then commands are ignored
+    last = r.send(9.0, 1.0)
+    assert r.helpers.wait_until(lambda: r.last_applied() == (0.0, 0.0), 2.0)
+    tripped = [t for t, m in r.applied.items() if (m.u1, m.u2) == (0.0, 0.0)][-1]
+    assert tripped - last < 0.5
+    values = r.wait_values(lambda v: v['watchdog trips'] == '1', 3.0, 'the watchdog trip')
+    assert 50.0 <= float(values['last watchdog trip after (ms)']) <= 65.0, values
+    assert values['armed'] == 'false' and 'watchdog' in values['safe reason']
+    status = r.status()
+    assert status.level == DiagnosticStatus.WARN and 'watchdog' in status.message
+
+    r.send(8.0, 2.0, duration=0.2)
+    assert r.last_applied() == (0.0, 0.0), 'commands must not resume before ~/arm'
+    response = r.call('arm')
+    assert response.success, response.message
+    assert r.last_applied() == (0.0, 0.0), 'arming alone does not move the valves'
+    r.send(12.0, 2.0, duration=0.05)   # clipped to 10 V
+    assert r.helpers.wait_until(
+        lambda: any((m.u1, m.u2) == (10.0, 2.0) for m in r.applied.messages()), 2.0)
+
+    # e-stop while commands keep coming
+    response = r.call('estop')
+    assert response.success
+    r.send(8.0, 2.0, duration=0.1)
+    assert r.last_applied() == (0.0, 0.0)
+    values = r.wait_values(lambda v: v['e-stops'] == '1' and 'e-stop' in v['safe reason'], 3.0,
+                           'the e-stop on /diagnostics')
+    assert int(values['commands clipped']) >= 1
+    assert r.driver.alive() and r.emulator.alive()
+
+
+def test_calibration_round_trip(rig):
+    from pam_model.model import PamModel
+    x0 = (0.1, 0.0, 450e3, 380e3)
+    r = rig(emulator_args=('--freeze', '--locked', '--noise-std', '0', '--x0',
+                           *(str(v) for v in x0)),
+            driver_params=('stuck_time:=0.0',))
+    r.driver.wait_for(lambda: len(r.joint) > 10, 10.0, 'joint_measured')
+    cal = calibration.load()
+    p = r.pressures.messages()[-1]
+    assert abs(p.p1 - x0[2]) <= cal.pressure_resolution(0), p.p1
+    assert abs(p.p2 - x0[3]) <= cal.pressure_resolution(1), p.p2
+    # exactly the emulator's counts through the calibration
+    assert math.isclose(p.p1, cal.pressure(0, cal.pressure_counts(0, x0[2])), abs_tol=1e-6)
+    j = r.joint.messages()[-1]
+    assert abs(j.angle - x0[0]) <= cal.angle_resolution
+    assert j.angular_velocity == 0.0
+    _, _, tau = PamModel(locked=True).outputs(list(x0))
+    assert abs(j.torque - float(tau)) <= cal.torque_resolution, (j.torque, tau)
+
+
+def test_injected_faults_are_counted_and_survived(rig):
+    r = rig(emulator_args=('--garbage-every', '0.05', '--corrupt-every', '0.07',
+                           '--drop-every', '0.09', '--disconnect-at', '2.5',
+                           '--disconnect-for', '1.0'))
+    values = r.wait_values(
+        lambda v: int(v['crc errors']) > 0 and int(v['garbage bytes']) > 0
+        and int(v['lost frames']) > 0, 5.0, 'CRC errors, garbage and lost frames on /diagnostics')
+    # unplug at 2.5 s, replug 1 s later: reconnect with backoff, samples resume
+    values = r.wait_values(lambda v: int(v['reconnects']) >= 1, 10.0, 'a reconnect')
+    assert int(values['disconnects']) >= 1
+    assert 'device lost' in values['safe reason'] and values['armed'] == 'false'
+    since = time.monotonic()
+    r.driver.wait_for(lambda: len([t for t, _ in r.pressures.items() if t > since]) > 500, 5.0,
+                      'samples after the replug')
+    assert r.call('arm').success
+    since = time.monotonic()
+    r.send(8.0, 2.0, duration=0.05)
+    assert r.helpers.wait_until(
+        lambda: any((m.u1, m.u2) == (8.0, 2.0) for m in r.applied.since(since)), 2.0)
+    values = r.values()
+    lost, crc = int(values['lost frames']), int(values['crc errors'])
+    assert lost >= crc  # a corrupted frame is a lost one too
+    assert r.driver.alive() and r.emulator.alive()
+    assert all(math.isfinite(m.p1) and math.isfinite(m.p2) for m in r.pressures.messages())
+
+
+def test_stuck_and_out_of_range_sensors_go_safe(rig):
+    r = rig(emulator_args=('--stuck-sensor', 'p2', '--stuck-at', '4.0'),
+            driver_params=('stuck_time:=0.2', 'watchdog_timeout:=0.0'))
+    r.send(8.0, 2.0, duration=0.3)
+    assert r.helpers.wait_until(
+        lambda: any((m.u1, m.u2) == (8.0, 2.0) for m in r.applied.messages()),
+        2.0), str(r.values())
+    values = r.wait_values(lambda v: 'P2 stuck' in v['sensor fault'], 8.0, 'the stuck sensor')
+    assert r.last_applied() == (0.0, 0.0)
+    assert r.status().level == DiagnosticStatus.ERROR
+    assert values['armed'] == 'false'
+    response = r.call('arm')
+    assert not response.success and 'sensor fault' in response.message
+    assert r.driver.alive()
+
+
+def test_out_of_range_pressure_goes_safe(rig):
+    r = rig(driver_params=('pressure_limits:=[500000.0, 900000.0]',))
+    values = r.wait_values(lambda v: 'out of range' in v['sensor fault'], 5.0,
+                           'the out-of-range fault')
+    assert int(values['sensor faults']) >= 1
+    assert not r.call('arm').success
+    r.send(8.0, 2.0, duration=0.05)
+    assert r.last_applied() in (None, (0.0, 0.0))
