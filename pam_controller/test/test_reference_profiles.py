@@ -46,7 +46,7 @@ def test_reference_node_publishes(node_process, probe):
     got = probe.subscribe(Reference, '/pam/reference')
     node = node_process('reference_node', 'pam_controller', '-p', 'mode:=torque', '-p',
                         'profile:=sine', '-p', 'amplitude:=1.5', '-p', 'period:=1.0')
-    node.wait_for(lambda: len(got) >= 60, 30.0, '60 references')
+    node.wait_for(lambda: len(got) >= 150, 30.0, '150 references (1.5 periods)')
     msgs = got.messages()
     assert all(m.mode == Reference.TORQUE for m in msgs)
     assert max(m.value for m in msgs) > 1.0 and min(m.value for m in msgs) < -1.0
