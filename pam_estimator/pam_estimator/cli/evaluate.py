@@ -10,9 +10,11 @@ from pam_model.cli.common import run_cli
 from pam_model.metrics import Metrics
 from pam_model.model import PamModel
 from pam_model.parameters import load_parameters
-from pam_model.simulate import SimulationResult
 from pam_model.valve_map import load_valve_map
 
+from pam_driver.bags import BagError
+
+from ..bag_runs import load_run
 from ..evaluation import PAPER_TABLE_III, compare_models, evaluate, format_table, quantity
 from ..pam_ukf import TUNINGS
 
@@ -24,8 +26,16 @@ def parse_args(argv=None) -> argparse.Namespace:
                     'loop from the valve commands) and the sensor-less UKF (which also sees the '
                     'pressures) over a recorded run, and prints I, M, Q of the angle (deg, free '
                     'joint) or torque (N m, locked joint) errors beside the paper\'s values. '
-                    'Input: a run written by pam-simulate (.npz or .csv).')
-    parser.add_argument('runs', nargs='+', metavar='RUN', help='recorded run(s), .npz or .csv')
+                    'Input: a run written by pam-simulate (.npz or .csv) or a recorded bag directory '
+                    '(/pam/pressures, /pam/valve_command, /pam/joint_measured; see README, Bags).')
+    parser.add_argument('runs', nargs='+', metavar='RUN',
+                        help='recorded run(s): .npz, .csv or a bag directory (metadata.yaml + .mcap)')
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument('--locked', dest='locked', action='store_true', default=None,
+                      help='treat the run(s) as locked-joint (torque evaluated); default: a bag is '
+                           'locked if its measured angle is constant, a file says what it is')
+    mode.add_argument('--free', dest='locked', action='store_false',
+                      help='treat the run(s) as free-joint (angle evaluated)')
     parser.add_argument('--params', default='default', metavar='SET|FILE',
                         help="parameters the estimator assumes (default: %(default)s)")
     parser.add_argument('--kappa', default='default', metavar='FILE',
@@ -45,7 +55,10 @@ def body(argv=None) -> int:
     model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.kappa))
     tuning = TUNINGS[args.tuning]
     for path in args.runs:
-        run = SimulationResult.load(path)
+        try:
+            run = load_run(path, args.locked)
+        except BagError as exc:
+            raise ValueError(str(exc)) from exc
         kind = quantity(run)
         table, alone, ukf = evaluate(run, model, tuning)
         print(f'{path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
@@ -57,8 +70,9 @@ def body(argv=None) -> int:
             from ..plots import plot_evaluation
             out = Path(args.plots)
             out.mkdir(parents=True, exist_ok=True)
-            png = plot_evaluation(run, alone, ukf, out / (Path(path).stem + f'_{kind}.png'),
-                                  title=f'{Path(path).name}: {kind}, model alone vs UKF')
+            name = Path(path).resolve().name if Path(path).is_dir() else Path(path).stem
+            png = plot_evaluation(run, alone, ukf, out / f'{name}_{kind}.png',
+                                  title=f'{name}: {kind}, model alone vs UKF')
             print(f'wrote {png}')
         if args.compare_models:
             print(f'\nUKF with each model variant ({kind}):')

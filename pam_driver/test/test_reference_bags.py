@@ -1,0 +1,81 @@
+"""The reference bags in bags/: readable by rosbags and by mcap + mcap_ros2 (embedded schemas
+alone), and structurally what Jazzy's rosbag2 writes (summary, chunk indexes, one schema per
+type, channel metadata, counts)."""
+
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from pam_driver import bags
+
+BAG_ROOT = Path(__file__).resolve().parents[2] / 'bags'
+REFERENCE = sorted(p for p in BAG_ROOT.glob('*') if (p / bags.METADATA).is_file())
+EXPECTED = {'validation_mild_free', 'validation_mild_locked'}
+
+
+def test_the_reference_bags_are_there_and_small():
+    assert EXPECTED <= {p.name for p in REFERENCE}
+    total = sum(f.stat().st_size for f in BAG_ROOT.rglob('*') if f.is_file())
+    assert total < 6.3e6
+    for f in BAG_ROOT.rglob('*.mcap'):
+        assert f.stat().st_size < 4e6
+
+
+@pytest.fixture(params=REFERENCE, ids=lambda p: p.name)
+def bag(request):
+    return request.param
+
+
+def _rosbags_counts(path):
+    from rosbags.rosbag2 import Reader
+    store = bags.make_typestore()
+    counts = Counter()
+    with Reader(path) as reader:
+        for conn, _, raw in reader.messages():
+            store.deserialize_cdr(raw, conn.msgtype)
+            counts[conn.topic] += 1
+        assert reader.message_count == sum(counts.values())
+    return counts
+
+
+def test_rosbags_reads_and_decodes_every_message(bag):
+    counts = _rosbags_counts(bag)
+    assert {'/pam/pressures', '/pam/valve_command', '/pam/joint_measured'} <= set(counts)
+    assert min(counts.values()) > 1000
+
+
+def test_mcap_ros2_decodes_from_the_embedded_schemas_and_the_structure_is_jazzys(bag):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    files = list(bag.glob('*.mcap'))
+    assert len(files) == 1
+    with files[0].open('rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        header = reader.get_header()
+        assert header.profile == 'ros2'
+        assert summary is not None and summary.statistics is not None
+        assert summary.chunk_indexes and all(c.compression == 'zstd'
+                                             for c in summary.chunk_indexes)
+        assert all(c.message_index_offsets for c in summary.chunk_indexes)
+        names = [s.name for s in summary.schemas.values()]
+        assert len(names) == len(set(names))     # one schema per type
+        assert all(s.encoding == 'ros2msg' and s.data for s in summary.schemas.values())
+        for channel in summary.channels.values():
+            assert channel.message_encoding == 'cdr'
+            assert channel.metadata['topic_type_hash'].startswith('RIHS01_')
+            assert 'reliability' in channel.metadata['offered_qos_profiles']
+            assert summary.schemas[channel.schema_id].name in (
+                'pam_interfaces/msg/Pressures', 'pam_interfaces/msg/ValveCommand',
+                'pam_interfaces/msg/JointMeasurement', 'pam_interfaces/msg/JointEstimate')
+        decoded = Counter()
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            assert msg.header.stamp.sec >= 0
+            decoded[channel.topic] += 1
+    stats = {summary.channels[cid].topic: n
+             for cid, n in summary.statistics.channel_message_counts.items()}
+    assert stats == dict(decoded) == dict(_rosbags_counts(bag))
+    info = bags.bag_info(bag)
+    assert {t['name']: t['count'] for t in info['topics']} == stats
+    assert info['version'] == 9 and info['storage'] == 'mcap'

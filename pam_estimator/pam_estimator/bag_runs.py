@@ -1,0 +1,138 @@
+"""A recorded bag as a run for the offline evaluation (pam-evaluate), without rclpy.
+
+From a Jazzy MCAP bag (pam_driver.bags) holding /pam/pressures, /pam/valve_command and
+/pam/joint_measured, build the SimulationResult the evaluation reads:
+
+* samples: the pressure messages, ordered by header stamp (a stamp seen again, e.g. a lockstep
+  simulator re-publishing its sample, is one sample); t = stamp - first stamp (s);
+* u[k]: the command in effect at sample k: the latest valve command whose header stamp is at or
+  before sample k's stamp (among equal stamps, the last received); before any command 5.5 V
+  (the rig's and the estimator's initial command). The UKF steps at sample k with u[k-1], which is
+  what ukf_node does live (the command for sample k-1 arrives between samples k-1 and k);
+* x: measured angle and angular velocity (joint_measured at the sample's stamp; linearly
+  interpolated over stamps for samples whose measurement is missing) and the measured
+  pressures; torque: the measured torque; force, friction, subsystem: not measured (NaN / 0);
+* locked: the measured angle is constant within LOCKED_TOLERANCE over the bag, unless given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pam_model.simulate import SimulationResult
+
+PRESSURES = '/pam/pressures'
+COMMAND = '/pam/valve_command'
+MEASURED = '/pam/joint_measured'
+INITIAL_COMMAND = (5.5, 5.5)
+LOCKED_TOLERANCE = 1e-9   # rad
+
+
+@dataclass
+class BagRun:
+    """A bag converted to a run, with what the conversion had to fill in."""
+
+    run: SimulationResult
+    stamps_ns: np.ndarray        # (N,) header stamps of the samples
+    commands: int                # valve commands in the bag
+    measured_missing: int        # samples without their own joint_measured (interpolated)
+    duplicates: int              # pressure messages with an already seen stamp (ignored)
+
+
+def is_bag(path) -> bool:
+    """A bag directory (metadata.yaml) or its .mcap file."""
+    path = Path(path)
+    return (path.is_dir() and (path / 'metadata.yaml').is_file()) or path.suffix == '.mcap'
+
+
+def _stamp(msg) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
+def _decode(contents, store, topic):
+    """[(stamp_ns, message)] of one topic, in receive order."""
+    if topic not in contents.topics:
+        return []
+    i = contents.topic_names.index(topic)
+    msgtype = contents.topics[topic]
+    out = []
+    for ti, data in zip(contents.topic_index, contents.data):
+        if ti == i:
+            msg = store.deserialize_cdr(data, msgtype)
+            out.append((_stamp(msg), msg))
+    return out
+
+
+def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> BagRun:
+    """The run recorded in a bag (see the module doc); BagError / ValueError if it cannot be."""
+    from pam_driver.bags import BagError, load_bag, make_typestore
+    topics = [t.replace('/pam', namespace, 1) for t in (PRESSURES, COMMAND, MEASURED)]
+    contents = load_bag(path)
+    for topic in (topics[0], topics[2]):
+        if topic not in contents.topics:
+            raise BagError(f'{contents.path}: no {topic} in the bag (it has: '
+                           f'{", ".join(sorted(contents.topics)) or "nothing"}); pam-evaluate '
+                           f'needs {", ".join(topics)}')
+    store = make_typestore()
+    pressures = _decode(contents, store, topics[0])
+    commands = _decode(contents, store, topics[1])
+    measured = _decode(contents, store, topics[2])
+    if len(pressures) < 2 or not measured:
+        raise BagError(f'{contents.path}: too few samples ({len(pressures)} pressures, '
+                       f'{len(measured)} joint measurements)')
+
+    # samples: unique stamps, first message of each
+    p_stamps = np.array([s for s, _ in pressures], dtype=np.int64)
+    order = np.argsort(p_stamps, kind='stable')
+    stamps, first = np.unique(p_stamps[order], return_index=True)
+    keep = order[first]
+    p = np.array([[pressures[j][1].p1, pressures[j][1].p2] for j in keep], dtype=float)
+
+    # commands in effect: last command with stamp <= sample stamp
+    u = np.tile(np.asarray(INITIAL_COMMAND, dtype=float), (len(stamps), 1))
+    if commands:
+        c_stamps = np.array([s for s, _ in commands], dtype=np.int64)
+        c_order = np.argsort(c_stamps, kind='stable')
+        c_sorted = c_stamps[c_order]
+        c_u = np.array([[commands[j][1].u1, commands[j][1].u2] for j in c_order], dtype=float)
+        idx = np.searchsorted(c_sorted, stamps, side='right') - 1
+        has = idx >= 0
+        u[has] = c_u[idx[has]]
+
+    # joint measurement at each sample's stamp
+    m_stamps = np.array([s for s, _ in measured], dtype=np.int64)
+    m_order = np.argsort(m_stamps, kind='stable')
+    m_sorted, m_first = np.unique(m_stamps[m_order], return_index=True)
+    m_vals = np.array([[measured[j][1].angle, measured[j][1].angular_velocity,
+                        measured[j][1].torque] for j in m_order[m_first]], dtype=float)
+    pos = np.searchsorted(m_sorted, stamps)
+    exact = (pos < len(m_sorted)) & (m_sorted[np.minimum(pos, len(m_sorted) - 1)] == stamps)
+    rel = (m_sorted - stamps[0]).astype(float)
+    t_rel = (stamps - stamps[0]).astype(float)
+    truth = np.column_stack([np.interp(t_rel, rel, m_vals[:, c]) for c in range(3)])
+
+    angle = truth[:, 0]
+    if locked is None:
+        locked = bool(np.ptp(m_vals[:, 0]) <= LOCKED_TOLERANCE)
+    n = len(stamps)
+    run = SimulationResult(
+        t=t_rel * 1e-9, u=u, x=np.column_stack([angle, truth[:, 1], p]), torque=truth[:, 2],
+        force=np.full((n, 2), np.nan), friction=np.zeros(n), subsystem=np.zeros(n, dtype=int),
+        p_measured=p.copy(), locked=bool(locked))
+    return BagRun(run=run, stamps_ns=stamps, commands=len(commands),
+                  measured_missing=int(n - exact.sum()), duplicates=len(pressures) - n)
+
+
+def load_run(path, locked: bool | None = None) -> SimulationResult:
+    """A run from a bag directory (or .mcap) or a pam-simulate file (.npz / .csv)."""
+    if is_bag(path):
+        return load_bag_run(path, locked).run
+    if not Path(path).is_file():
+        raise FileNotFoundError(f'{path}: no such file or bag directory')
+    run = SimulationResult.load(path)
+    if locked is not None:
+        run.locked = bool(locked)
+    return run
