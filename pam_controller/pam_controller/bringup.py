@@ -476,9 +476,7 @@ def main(argv=None) -> int:
         exe = find_executable(node.name, node.package)
         if exe is None:
             where = '; '.join(executable_candidates(node.name, node.package))
-            hint = (' (the hardware driver is not part of pam_driver yet: use --rig sim)'
-                    if node.name == RIGS['driver'][0] else ' (run `make setup` or source '
-                    'scripts/env.sh / your install)')
+            hint = ' (run `make setup` or source scripts/env.sh / your install)'
             return error(f"executable '{node.name}' of {node.package} not found{hint}; looked "
                          f'in: {where}')
         argv_of[node.name] = [exe, '--ros-args', '-r', f'__ns:={args.namespace}',

@@ -2,9 +2,10 @@
 
 Real runs on this module's ROS domain: the rig + estimator for a fixed duration (estimates at
 about 1 kHz, prefixed logs, the default params file's sections picked), SIGTERM stops every
-child, a child that dies makes pam-bringup fail naming it, a missing driver_node is a clear
-error, and the full stack (with pi_node and reference_node) runs closed loop at 1 kHz until a
-Ctrl-C (SIGINT) stops it cleanly.
+child, a child that dies makes pam-bringup fail naming it, the full stack (with pi_node and
+reference_node) runs closed loop at 1 kHz until a Ctrl-C (SIGINT) stops it cleanly, and
+`--rig driver` runs driver_node against pam-emulator (pressures and estimates at about 1 kHz, a
+clean stop) and runs on, retrying, when the port does not exist.
 """
 
 from __future__ import annotations
@@ -17,16 +18,19 @@ import time
 from pathlib import Path
 
 import pytest
-from pam_interfaces.msg import JointEstimate, ValveCommand
+import yaml
+from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_controller.bringup import (_key_pattern, default_params_file, find_executable,
                                     section_keys, sections_for)
-from pam_driver.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, child_env, executable
+from pam_driver.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable
 
 WINDOW = 1.5        # s, rate measurement window
 SETTLE = 0.5        # s, after the first message, before the window
 DURATION = 10.0     # s, --duration of the timed run (start-up under load takes up to ~6 s)
 MIN_RATE = 800.0    # Hz
+DRIVER_DURATION = 14.0   # s, --duration of the --rig driver run (pam-emulator loads a core too)
+DRIVER_MIN_RATE = 700.0  # Hz: emulator + driver + ukf + probe, each at 1 kHz, on 2 loaded cores
 STARTED = re.compile(r'started (\w+) \(.*?\), pid (\d+):')
 
 
@@ -91,19 +95,8 @@ def test_params_file_sections_follow_rcl_matching():
     assert not _key_pattern('sim_node').match('/pam/sim_node')   # means /sim_node
     assert not _key_pattern('/other/sim_node').match('/pam/sim_node')
     keys = section_keys(default_params_file())
-    for node in ('sim_node', 'ukf_node', 'pi_node', 'reference_node'):
+    for node in ('sim_node', 'driver_node', 'ukf_node', 'pi_node', 'reference_node'):
         assert sections_for(f'/pam/{node}', keys) == [f'/pam/{node}'], keys
-
-
-def test_missing_driver_node_is_a_clear_error(ros_domain):
-    if find_executable('driver_node', 'pam_driver') is not None:
-        pytest.skip('driver_node exists now: this test is about its absence')
-    run = subprocess.run([executable('pam-bringup', 'pam_controller'), '--rig', 'driver',
-                          '--no-controller', '--no-reference', '--duration', '1'],
-                         capture_output=True, text=True, timeout=30, env=child_env(ros_domain))
-    assert run.returncode == 2, run.stdout + run.stderr
-    assert "executable 'driver_node' of pam_driver not found" in run.stderr
-    assert 'started' not in run.stdout    # nothing was started
 
 
 # ---------------------------------------------------------------------------- real runs
@@ -184,3 +177,60 @@ def test_full_stack_runs_closed_loop_until_ctrl_c(node_process, probe, ros_domai
     assert set(started_pids(out)) == {'sim_node', 'ukf_node', 'reference_node', 'pi_node'}, out
     for name in ('sim_node', 'ukf_node', 'reference_node', 'pi_node'):
         assert prefixed(out, name), f'no output of {name}:\n{out}'
+
+
+# ---------------------------------------------------------------------------- --rig driver
+def driver_params(tmp_path, port) -> Path:
+    """The default params file with driver_node's port pointed at `port`."""
+    data = yaml.safe_load(default_params_file().read_text())
+    data['/pam/driver_node']['ros__parameters']['port'] = str(port)
+    path = tmp_path / 'bringup_driver.yaml'
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_rig_driver_runs_against_the_emulator(node_process, probe, ros_domain, tmp_path):
+    link = tmp_path / 'pam_daq'
+    emulator = node_process('pam-emulator', 'pam_driver', '--link', str(link), '--mismatch',
+                            'mild', raw=True)
+    emulator.wait_for(link.is_symlink, STARTUP_TIMEOUT, 'the emulator pty link')
+    pressures = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
+    estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=1000)
+    run = bringup(node_process, ros_domain, '--rig', 'driver', '--no-controller',
+                  '--no-reference', '--params-file', str(driver_params(tmp_path, link)),
+                  '--duration', str(DRIVER_DURATION))
+    run.wait_for(lambda: len(estimates) > 0, DRIVER_DURATION - SETTLE - WINDOW - 0.5,
+                 'the first /pam/estimate')
+    time.sleep(SETTLE)
+    t0 = time.monotonic()
+    time.sleep(WINDOW)
+    p_rate = len(pressures.since(t0)) / WINDOW
+    e_rate = len(estimates.since(t0)) / WINDOW
+    assert run.alive(), 'pam-bringup stopped before the end of the rate window'
+    assert p_rate >= DRIVER_MIN_RATE and e_rate >= DRIVER_MIN_RATE, (p_rate, e_rate)
+
+    code = run.wait_exit(timeout=DRIVER_DURATION + STOP_TIMEOUT + 5.0)
+    out = run.stdout
+    assert_clean_exit(code, out + run.stderr)
+    assert set(started_pids(out)) == {'driver_node', 'ukf_node'}, out
+    driver_lines = prefixed(out, 'driver_node')
+    assert any(f'connected to {link}' in line for line in driver_lines), out
+    assert 'all nodes stopped cleanly' in out
+    assert emulator.alive()
+
+
+def test_rig_driver_with_a_missing_port_keeps_retrying(node_process, ros_domain, tmp_path):
+    """No board (yet): driver_node does not exit (a USB board may be plugged in later); it warns
+    on the console, reports ERROR on /diagnostics and retries with backoff. pam-bringup runs on
+    and stops cleanly."""
+    port = tmp_path / 'no_such_port'
+    run = bringup(node_process, ros_domain, '--rig', 'driver', '--no-controller',
+                  '--no-reference', '--params-file', str(driver_params(tmp_path, port)))
+    run.wait_for(lambda: f'cannot connect to {port}' in run.stdout, STARTUP_TIMEOUT,
+                 "driver_node's warning about the missing port")
+    time.sleep(0.5)
+    assert run.alive() and 'died' not in run.stdout, run.stdout
+    run.proc.send_signal(signal.SIGINT)
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    assert_clean_exit(code, run.stdout + run.stderr)
+    assert any('retrying in' in line for line in prefixed(run.stdout, 'driver_node')), run.stdout

@@ -239,8 +239,10 @@ class DriverNode(Node):
                 self._stream()
             except DeviceLost as exc:
                 self._last_error = str(exc)
+                self._warn_not_connected(backoff)
             except (serial.SerialException, OSError) as exc:
                 self._last_error = f'{type(exc).__name__}: {exc}'
+                self._warn_not_connected(backoff)
             except Exception as exc:  # noqa: BLE001 - never die: safe output, report, retry
                 with self._lock:
                     self._internal_errors += 1
@@ -252,6 +254,16 @@ class DriverNode(Node):
             if self._stop.wait(backoff):
                 break
             backoff = min(2.0 * backoff, longest)
+
+    def _warn_not_connected(self, backoff: float) -> None:
+        """A failed connection attempt (port missing, no handshake): the node keeps retrying
+        (the board may be plugged in later); say so on the console, at most every 10 s."""
+        if self._connected or self._stop.is_set():
+            return   # lost while streaming: _disconnect() reports it
+        self.get_logger().warning(
+            f"cannot connect to {self.config['port']}: {self._last_error}; retrying in "
+            f'{backoff:g} s (up to every {self.config["reconnect_backoff"][1]:g} s), safe output '
+            'meanwhile; /diagnostics reports ERROR until connected', throttle_duration_sec=10.0)
 
     def _connect(self, serial) -> None:
         ser = serial.Serial(self.config['port'], self.config['baud'], timeout=0.002,
