@@ -95,8 +95,14 @@ def _mean(values):
     return sum(values) / len(values)
 
 
+# The watchdog runs at 0.3 s here, not the 50 ms default: this test process publishes the
+# commands itself and can stall for more than 50 ms on a loaded machine, which would trip the
+# watchdog in the middle of the checks before it. The trip time is checked against 0.3 s.
+WATCHDOG = 0.3
+
+
 def test_rate_commands_watchdog_arm_and_estop(rig):
-    r = rig()
+    r = rig(driver_params=(f'watchdog_timeout:={WATCHDOG}',))
     time.sleep(0.5)
     start = time.monotonic()
     time.sleep(2.0)
@@ -116,13 +122,14 @@ def test_rate_commands_watchdog_arm_and_estop(rig):
     assert _mean(m.p1 for m in after) > before + 20e3, (before, after[-1])
     assert r.last_applied() == (9.0, 1.0)
 
-    # the watchdog: no command for 50 ms -> safe output (vent), then commands are ignored
+    # the watchdog: no command for WATCHDOG s -> safe output (vent), then commands are ignored
     last = r.send(9.0, 1.0)
     assert r.helpers.wait_until(lambda: r.last_applied() == (0.0, 0.0), 2.0)
     tripped = [t for t, m in r.applied.items() if (m.u1, m.u2) == (0.0, 0.0)][-1]
-    assert tripped - last < 0.5
+    assert tripped - last < WATCHDOG + 0.5
     values = r.wait_values(lambda v: v['watchdog trips'] == '1', 3.0, 'the watchdog trip')
-    assert 50.0 <= float(values['last watchdog trip after (ms)']) <= 65.0, values
+    assert 1e3 * WATCHDOG <= float(values['last watchdog trip after (ms)']) <= 1e3 * WATCHDOG + 15
+    assert values['armed'] == 'false', values
     assert values['armed'] == 'false' and 'watchdog' in values['safe reason']
     status = r.status()
     assert status.level == DiagnosticStatus.WARN and 'watchdog' in status.message
