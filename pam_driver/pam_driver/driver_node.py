@@ -34,8 +34,6 @@ import sys
 import threading
 import time
 
-import rclpy
-import rclpy.utilities
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
@@ -43,7 +41,8 @@ from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_driver import daq_protocol as proto
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_driver.driver_config import PARAMETERS, build_config, usage_text, wants_help
+from pam_driver.driver_config import PARAMETERS, build_config, usage_text
+from pam_driver.node_params import cli_preamble
 from pam_driver.executors import run_node
 from pam_driver.node_params import declare_parameters, unknown_overrides
 from pam_driver.timing import RateStatistics
@@ -506,14 +505,9 @@ class DriverNode(Node):
 
 def main(args=None) -> int:
     argv = sys.argv if args is None else list(args)
-    if wants_help(argv):
-        sys.stdout.write(usage_text())
-        return 0
-    leftover = rclpy.utilities.remove_ros_args(argv)[1:]
-    if leftover:
-        sys.stderr.write(f'driver_node: error: unknown argument {leftover[0]!r}; parameters are '
-                         'set with --ros-args -p NAME:=VALUE (see driver_node --help)\n')
-        return 2
+    code = cli_preamble(argv, NODE_NAME, usage_text())
+    if code is not None:
+        return code
     return run_node(DriverNode, NODE_NAME, args=argv, stop=lambda node: node.stop())
 
 

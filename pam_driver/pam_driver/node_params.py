@@ -139,6 +139,22 @@ def wants_help(argv: Sequence[str]) -> bool:
     return False
 
 
+def cli_preamble(argv: Sequence[str], prog: str, usage: str) -> int | None:
+    """Before rclpy starts: --help prints `usage` (exit code 0); an argument that is not a ROS
+    argument is an error (exit code 2). None: go on."""
+    import sys
+    if wants_help(argv):
+        sys.stdout.write(usage)
+        return 0
+    from rclpy.utilities import remove_ros_args
+    leftover = remove_ros_args(list(argv))[1:]
+    if leftover:
+        sys.stderr.write(f'{prog}: error: unknown argument {leftover[0]!r}; parameters are set '
+                         f'with --ros-args -p NAME:=VALUE (see {prog} --help)\n')
+        return 2
+    return None
+
+
 def usage_text(prog: str, summary: Sequence[str], specs: Sequence[ParamSpec],
                examples: Sequence[str] = ()) -> str:
     """--help text: usage line, the node's summary lines, every parameter, examples."""

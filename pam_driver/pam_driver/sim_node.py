@@ -77,8 +77,8 @@ from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.executors import make_executor, spin
 from pam_driver.node_params import declare_parameters, unknown_overrides
-from pam_driver.sim_config import (PARAMETERS, ConfigError, build_config, usage_text,
-                                   wants_help)
+from pam_driver.node_params import cli_preamble
+from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_driver.timing import DeadlineSchedule, RateStatistics
 
 NODE_NAME = 'sim_node'
@@ -382,14 +382,9 @@ class SimNode(Node):
 
 def main(args=None) -> int:
     argv = sys.argv if args is None else list(args)
-    if wants_help(argv):
-        sys.stdout.write(usage_text())
-        return 0
-    leftover = rclpy.utilities.remove_ros_args(argv)[1:]
-    if leftover:
-        sys.stderr.write(f'sim_node: error: unknown argument {leftover[0]!r}; parameters are set '
-                         'with --ros-args -p NAME:=VALUE (see sim_node --help)\n')
-        return 2
+    code = cli_preamble(argv, NODE_NAME, usage_text())
+    if code is not None:
+        return code
 
     rclpy.init(args=argv)
     node = None
