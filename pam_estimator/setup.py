@@ -24,6 +24,8 @@ setup(
         'console_scripts': [
             'ukf_node = pam_estimator.ukf_node:main',
             'pam-evaluate = pam_estimator.cli.evaluate:main',
+            'pam-identify = pam_estimator.cli.identify:main',
+            'pam-calibration-bags = pam_estimator.cli.calibration_bags:main',
         ],
     },
 )

@@ -41,8 +41,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "+15.75 N), 'printed' (as printed in the paper) or the path of a Table II YAML "
               'file.'),
     ParamSpec('mismatch', '', 'string', '',
-              "Plant mismatch scenario applied to plant_parameters: '' (none), 'mild' or the path "
-              'of a scenario YAML file. A scenario also brings its pressure sensor model.'),
+              "Plant mismatch scenario applied to plant_parameters: '' (none), 'mild', 'strong' "
+              'or the path of a scenario YAML file. A scenario also brings its pressure sensor '
+              'model.'),
     ParamSpec('valve_map', 'default', 'string', '',
               "Valve map kappa(u) of the plant: 'default' (shipped table) or the path of a "
               'voltage_V,alpha CSV file.'),

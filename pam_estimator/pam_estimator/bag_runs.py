@@ -74,8 +74,8 @@ def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> B
     for topic in (topics[0], topics[2]):
         if topic not in contents.topics:
             raise BagError(f'{contents.path}: no {topic} in the bag (it has: '
-                           f'{", ".join(sorted(contents.topics)) or "nothing"}); pam-evaluate '
-                           f'needs {", ".join(topics)}')
+                           f'{", ".join(sorted(contents.topics)) or "nothing"}); a run needs '
+                           f'{", ".join(topics)}')
     store = make_typestore()
     pressures = _decode(contents, store, topics[0])
     commands = _decode(contents, store, topics[1])
@@ -136,3 +136,51 @@ def load_run(path, locked: bool | None = None) -> SimulationResult:
     if locked is not None:
         run.locked = bool(locked)
     return run
+
+
+#: Header stamp of the first sample of a bag written from a simulated run (ns): a fixed date, so the
+#: same run gives the same bag.
+SIMULATED_START_NS = 1_700_000_000 * 1_000_000_000
+
+
+def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
+                  start_ns: int = SIMULATED_START_NS, namespace: str = '/pam') -> Path:
+    """Write a simulated run as the bag the live stack records (the inverse of load_bag_run).
+
+    Per sample k, stamped start_ns + t[k]: /pam/pressures (the sensor readings p_measured),
+    /pam/joint_measured (the true angle, velocity and torque) and /pam/valve_command (u[k]),
+    which is what sim_node, profile_player and bag_record write for the same profile. The output
+    directory must not exist.
+    """
+    from pam_driver.bags import BagWriter
+    writer = BagWriter(Path(path))
+    store = writer.typestore
+    names = {'pressures': f'{namespace}/pressures', 'command': f'{namespace}/valve_command',
+             'measured': f'{namespace}/joint_measured'}
+    msg_types = {'pressures': 'pam_interfaces/msg/Pressures',
+                 'command': 'pam_interfaces/msg/ValveCommand',
+                 'measured': 'pam_interfaces/msg/JointMeasurement'}
+    for key, topic in names.items():
+        writer.add_topic(topic, msg_types[key])
+    classes = {key: store.types[msgtype] for key, msgtype in msg_types.items()}
+    Header = store.types['std_msgs/msg/Header']
+    Time = store.types['builtin_interfaces/msg/Time']
+    stamps = start_ns + np.round(np.asarray(run.t) * 1e9).astype(np.int64)
+    try:
+        for k, stamp in enumerate(stamps.tolist()):
+            header = Header(stamp=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
+                            frame_id=frame_id)
+            rows = {
+                'pressures': classes['pressures'](header=header, p1=float(run.p_measured[k, 0]),
+                                                  p2=float(run.p_measured[k, 1])),
+                'measured': classes['measured'](header=header, angle=float(run.x[k, 0]),
+                                                angular_velocity=float(run.x[k, 1]),
+                                                torque=float(run.torque[k])),
+                'command': classes['command'](header=header, u1=float(run.u[k, 0]),
+                                              u2=float(run.u[k, 1])),
+            }
+            for key in ('pressures', 'measured', 'command'):
+                writer.write(names[key], stamp, store.serialize_cdr(rows[key], msg_types[key]))
+    finally:
+        writer.close()
+    return Path(path)

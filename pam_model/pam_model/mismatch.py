@@ -13,7 +13,7 @@ from .parameters import (ParameterError, Parameters, read_yaml, check_number, da
                          field_name, validate_parameters)
 from .sensor import PressureSensor
 
-BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml'}
+BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml', 'strong': 'mismatch_strong.yaml'}
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ def scenario_from_dict(data: Mapping, source: str) -> MismatchScenario:
 
 
 def load_scenario(name_or_path: str | Path) -> MismatchScenario:
-    """A scenario by built-in name ('mild') or YAML path."""
+    """A scenario by built-in name ('mild', 'strong') or YAML path."""
     path = (data_path(BUILTIN_SCENARIOS[str(name_or_path)])
             if str(name_or_path) in BUILTIN_SCENARIOS else Path(name_or_path))
     return scenario_from_dict(read_yaml(path), str(path))

@@ -20,17 +20,20 @@ def run_cli(main_body, argv=None) -> int:
         return 130
 
 
-def add_model_arguments(parser: argparse.ArgumentParser) -> None:
-    """--params, --mismatch, --friction, --force, --locked, --kappa."""
+def add_model_arguments(parser: argparse.ArgumentParser, laws: bool = True) -> None:
+    """--params, --mismatch, --kappa and (laws=True) --friction, --force, --locked."""
     from ..physics import FORCE_MODELS, FRICTION_LAWS
     parser.add_argument('--params', default='default', metavar='SET|FILE',
                         help="Table II set: 'default' (corrected), 'printed', or a YAML file "
                              "(default: %(default)s)")
     parser.add_argument('--mismatch', default='', metavar='NAME|FILE',
-                        help="plant mismatch scenario applied to --params: 'mild' or a YAML file; "
+                        help="plant mismatch scenario applied to --params: 'mild', 'strong' or a YAML file; "
                              "its sensor model is used too (default: none)")
     parser.add_argument('--kappa', default='default', metavar='FILE',
                         help='valve map table CSV (voltage_V,alpha) (default: shipped table)')
+    if not laws:
+        parser.set_defaults(friction='proposed', force='proposed', locked=False)
+        return
     parser.add_argument('--friction', default='proposed', choices=FRICTION_LAWS,
                         help='friction law (Table III) (default: %(default)s)')
     parser.add_argument('--force', default='proposed', choices=FORCE_MODELS,

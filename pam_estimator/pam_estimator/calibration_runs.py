@@ -1,0 +1,70 @@
+"""Calibration runs for pam-identify: read from bags (or pam-simulate files) as CalibrationRecords,
+and the identified set written out (parameter YAML, kappa table, report) all or nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from pam_model.identification.records import CalibrationRecord, RecordError
+from pam_model.parameters import load_parameters, save_parameters
+from pam_model.simulate import SimulationResult
+from pam_model.valve_map import load_valve_map
+
+from .bag_runs import COMMAND, is_bag, load_bag_run
+
+PARAMS_FILE = 'params.yaml'
+KAPPA_FILE = 'kappa.csv'
+REPORT_FILE = 'report.txt'
+
+
+def load_record(path) -> CalibrationRecord:
+    """One calibration run; ValueError naming the file and what is wrong or missing."""
+    from pam_driver.bags import BagError
+    path = Path(path)
+    if is_bag(path):
+        try:
+            bag_run = load_bag_run(path)
+        except BagError as exc:
+            raise ValueError(str(exc)) from exc
+        if bag_run.commands == 0:
+            raise ValueError(f'{path}: no {COMMAND} messages: the valve map and the valve '
+                             'transients need the commands the rig was driven with')
+        run = bag_run.run
+    elif path.is_file():
+        run = SimulationResult.load(path)
+    else:
+        raise ValueError(f'{path}: no such bag directory or run file')
+    try:
+        return CalibrationRecord.from_run(run, str(path))
+    except RecordError as exc:
+        raise ValueError(str(exc)) from exc
+
+
+def write_identification(ident, report: str, out_dir, name: str = 'identified') -> dict:
+    """Write params.yaml, kappa.csv and report.txt into out_dir, which must not exist.
+
+    The files are written into a temporary sibling, read back with the loaders the nodes use,
+    and only then renamed to out_dir: a failure leaves nothing behind. Returns {kind: path}.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists():
+        raise ValueError(f'{out_dir}: already exists; not overwriting it (choose another output)')
+    parent = out_dir.parent if str(out_dir.parent) else Path('.')
+    parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f'.{out_dir.name}.', dir=parent))
+    try:
+        save_parameters(ident.params, staging / PARAMS_FILE, name=name)
+        ident.valve_map.save(staging / KAPPA_FILE)
+        (staging / REPORT_FILE).write_text(report + '\n')
+        load_parameters(staging / PARAMS_FILE)        # what ukf_node will load
+        load_valve_map(staging / KAPPA_FILE)
+        os.rename(staging, out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return {kind: out_dir / f for kind, f in
+            (('params', PARAMS_FILE), ('kappa', KAPPA_FILE), ('report', REPORT_FILE))}

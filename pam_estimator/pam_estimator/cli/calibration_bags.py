@@ -1,0 +1,88 @@
+"""pam-calibration-bags: a calibration campaign on the simulated rig, written as bags."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from pam_model.cli.common import add_model_arguments, build_model, run_cli
+from pam_model.identification.campaign import CampaignPlan, simulate_campaign
+from pam_model.profiles import validation_profile
+from pam_model.simulate import simulate
+
+from pam_driver.bags import BagError
+
+from ..bag_runs import write_run_bag
+
+
+def float_list(text: str) -> tuple:
+    try:
+        return tuple(float(v) for v in text.split(',') if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected comma-separated numbers, got {text!r}') from None
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='pam-calibration-bags',
+        description='Simulates the calibration runs pam-identify needs on a plant (batch '
+                    'simulator, as fast as it computes) and writes each as a bag with the topics, '
+                    'types and stamps the live stack records (sim_node + profile_player + '
+                    'bag_record): OUT/locked_<angle>deg per lock angle (profile '
+                    'calibration_locked) and OUT/free (calibration_free). Optionally also '
+                    'validation bags of the validation profile with another seed.')
+    parser.add_argument('out', metavar='OUT', help='directory for the bags (created; bags in it '
+                                                   'must not exist yet)')
+    add_model_arguments(parser, laws=False)
+    plan = CampaignPlan()
+    parser.add_argument('--angles', type=float_list, default=plan.lock_angles, metavar='DEG,...',
+                        help='lock angles of the locked runs (default: -15,0,15)')
+    parser.add_argument('--hold', type=float, default=plan.hold, metavar='S',
+                        help='static hold per voltage (default: %(default)s; 0: none)')
+    parser.add_argument('--pair-hold', type=float, default=plan.pair_hold, metavar='S',
+                        help='hold per voltage pair of the jump phase (default: %(default)s; 0: none)')
+    parser.add_argument('--voltages', type=float_list, default=plan.voltages, metavar='V,...',
+                        help='hold voltages (default: the shipped valve-map table nodes)')
+    parser.add_argument('--free-duration', type=float, default=plan.free_duration, metavar='S',
+                        help='length of the free run (default: %(default)s; 0: none)')
+    parser.add_argument('--seed', type=int, default=plan.seed, help='profile and noise seed')
+    parser.add_argument('--validation', type=float, default=0.0, metavar='S',
+                        help='also write validation_free and validation_locked: S seconds of the '
+                             'validation profile with seed+1 (default: none)')
+    return parser.parse_args(argv)
+
+
+def body(argv=None) -> int:
+    args = parse_args(argv)
+    model, scenario = build_model(args)
+    plan = CampaignPlan(lock_angles=args.angles, hold=args.hold, pair_hold=args.pair_hold,
+                        voltages=args.voltages, free_duration=args.free_duration, seed=args.seed)
+    runs = simulate_campaign(model, scenario.sensor, plan)
+    if args.validation > 0.0:
+        profile = validation_profile(args.seed + 1, args.validation, model.h)
+        x0 = np.array([0.0, 0.0, 4.5e5, 4.5e5])
+        for mode, locked in (('free', False), ('locked', True)):
+            runs.append((f'validation_{mode}', simulate(replace(model, locked=locked), profile.u,
+                                                        x0, scenario.sensor, args.seed + 1)))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, run in runs:
+        try:
+            path = write_run_bag(run, out / name)
+        except BagError as exc:
+            raise ValueError(str(exc)) from exc
+        print(f'wrote {path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
+              f'{"locked" if run.locked else "free"} joint', flush=True)
+    return 0
+
+
+def main(argv=None) -> None:
+    sys.exit(run_cli(body, argv))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,88 @@
+"""pam-identify: fits the model's parameters to calibration runs (bags) and writes them out."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from pam_model.cli.common import run_cli
+from pam_model.identification.identify import IdentificationError, format_report, identify
+from pam_model.mismatch import load_scenario
+from pam_model.parameters import load_parameters
+from pam_model.valve_map import load_valve_map
+
+from ..calibration_runs import load_record, write_identification
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='pam-identify',
+        description='Parameter identification (MODEL.md sections 3-4) from calibration runs: '
+                    'kappa(u) from static holds, the force coefficients from the torque meter '
+                    '(locked joint at 2+ angles), the effective valve areas A1, A2 and k2 from '
+                    'the pressure transients, mu_s and mu_p from free-joint runs, with scipy '
+                    'least squares. Prints each value with its uncertainty and the residuals, and '
+                    'writes OUTPUT/params.yaml, OUTPUT/kappa.csv and OUTPUT/report.txt, which '
+                    'ukf_node (model_parameters, valve_map) and pam-evaluate (--params, --kappa) '
+                    'load. Runs: bags recorded while profile_player played profile:='
+                    'calibration_locked (joint locked, one bag per lock angle) and '
+                    'calibration_free, or made by pam-calibration-bags on the simulator.')
+    parser.add_argument('runs', nargs='+', metavar='RUN',
+                        help='calibration run: a bag directory (/pam/pressures, '
+                             '/pam/valve_command, /pam/joint_measured) or a .npz/.csv run')
+    parser.add_argument('-o', '--output', required=True, metavar='DIR',
+                        help='directory to create for the results (must not exist)')
+    parser.add_argument('--prior', default='default', metavar='SET|FILE',
+                        help='parameter set to start from; also supplies what is not identified '
+                             '(geometry, gas, J, k_s, c_s, k1) (default: %(default)s)')
+    parser.add_argument('--kappa-prior', default='default', metavar='FILE',
+                        help='valve map to start from (default: the shipped table)')
+    parser.add_argument('--partial', action='store_true',
+                        help='when the runs cannot identify some parameters, keep their prior '
+                             'values (listed in the report) instead of failing')
+    parser.add_argument('--truth-mismatch', metavar='NAME|FILE',
+                        help='simulated runs only: the plant was --prior with this mismatch '
+                             'scenario (as pam-calibration-bags --mismatch made it); the report '
+                             'then shows the true values and the errors')
+    parser.add_argument('--name', default='identified', help='name written into params.yaml')
+    return parser.parse_args(argv)
+
+
+def body(argv=None) -> int:
+    args = parse_args(argv)
+    prior = load_parameters(args.prior)
+    prior_map = load_valve_map(args.kappa_prior)
+    records = []
+    for path in args.runs:
+        record = load_record(path)
+        print(f'{path}: {len(record.t)} samples ({record.t[-1] - record.t[0]:.1f} s), '
+              f'{"locked" if record.locked else "free"} joint'
+              + (f' at {math.degrees(record.lock_angle):+.1f} deg' if record.locked else '')
+              + ('' if record.has_torque else ', no torque'), flush=True)
+        records.append(record)
+    try:
+        ident = identify(records, prior, prior_map, partial=args.partial,
+                         log=lambda line: print(line, flush=True))
+    except IdentificationError as exc:
+        raise ValueError(f'{exc}\nnothing written') from exc
+    truth = load_scenario(args.truth_mismatch).apply(prior) if args.truth_mismatch else None
+    report = format_report(ident, prior, truth, prior_map if truth is not None else None)
+    files = write_identification(ident, report, args.output, args.name)
+    print()
+    print(report)
+    print()
+    print(f'wrote {files["params"]}, {files["kappa"]}, {files["report"]}'
+          + ('' if ident.complete else ' (PARTIAL: see "NOT identified" above)'))
+    print(f'use: ros2 run pam_estimator ukf_node --ros-args -p model_parameters:={files["params"]}'
+          f' -p valve_map:={files["kappa"]}')
+    print(f'     pam-evaluate --params {files["params"]} --kappa {files["kappa"]} VALIDATION_BAG')
+    return 0
+
+
+def main(argv=None) -> None:
+    sys.exit(run_cli(body, argv))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,100 @@
+"""Friction coefficients mu_s (shaft) and mu_p (tubes) from free runs (output error, eq. (10)).
+
+The joint of each free run is simulated from its first measured angle and velocity, driven by
+its measured pressures (low-pass filtered, zero phase, so that sensor noise does not shake the
+model joint), with the force model already identified and Kikuuwe's friction of the proposed law;
+the residual is simulated minus measured angle. Slow antagonistic ramps make the joint lag its
+frictionless equilibrium by T_c / stiffness, and co-contraction levels with different pressures
+weigh T_sh (mu_s, grows with F1 + F2) and T_p (mu_p, grows as a pressure nears P_out) differently.
+A coarse grid of both coefficients gives the start of the least-squares refinement (the cost is
+not smooth where the joint sticks).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from scipy.optimize import least_squares
+from scipy.signal import butter, sosfiltfilt
+
+from ..physics import friction_torque, joint_torque, muscle_forces
+from .fit_result import Estimate, GroupFit, NotIdentifiable, check_identified, standard_errors
+
+MIN_TRAVEL = math.radians(5.0)          # rad, a free run must move this much
+PRESSURE_FILTER_HZ = 25.0               # Hz, low-pass of the measured pressures (zero phase)
+GRID = np.linspace(-1.2, 1.2, 9)        # log factors of the coarse start grid
+PARAMETERS = ('mu_s', 'mu_p')
+
+
+@njit(cache=True)
+def joint_acceleration(psi, P1, P2, T_f, p):
+    """psi_ddot (rad/s^2) of eq. (9) at angle psi (rad), pressures P1, P2 (Pa), friction T_f (N m)."""
+    F1, F2 = muscle_forces(psi, P1, P2, p, 0)
+    return (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
+
+
+@njit(cache=True)
+def joint_trajectory(psi0, psi_dot0, P1, P2, dt, p, out):
+    """out[k] (rad): the joint angle from (psi0 rad, psi_dot0 rad/s) driven by pressures P1, P2
+    (N,) Pa held over each step dt (N-1,) s; friction (proposed law) once per step, RK4."""
+    psi, w = psi0, psi_dot0
+    out[0] = psi
+    for k in range(dt.shape[0]):
+        h = dt[k]
+        T_f, _ = friction_torque(psi, w, P1[k], P2[k], h, p, 0, 0)
+        a1 = joint_acceleration(psi, P1[k], P2[k], T_f, p)
+        a2 = joint_acceleration(psi + 0.5 * h * w, P1[k], P2[k], T_f, p)
+        w2 = w + 0.5 * h * a1
+        a3 = joint_acceleration(psi + 0.5 * h * w2, P1[k], P2[k], T_f, p)
+        w3 = w + 0.5 * h * a2
+        w4 = w + h * a3
+        a4 = joint_acceleration(psi + h * w3, P1[k], P2[k], T_f, p)
+        psi = psi + h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
+        w = w + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        out[k + 1] = psi
+    return out
+
+
+def filtered_pressures(rec) -> np.ndarray:
+    """(N, 2) Pa: the measured pressures low-passed at PRESSURE_FILTER_HZ, zero phase."""
+    fs = 1.0 / float(np.median(rec.dt))
+    sos = butter(2, min(PRESSURE_FILTER_HZ, 0.4 * fs), fs=fs, output='sos')
+    return sosfiltfilt(sos, rec.P, axis=0)
+
+
+def fit_friction(records, params) -> tuple[GroupFit, dict]:
+    """mu_s, mu_p from the free runs, with `params` holding the identified forces."""
+    used = [r for r in records if not r.locked and r.travel >= MIN_TRAVEL]
+    if not used:
+        raise NotIdentifiable(
+            f'mu_s and mu_p need a free-joint run with an encoder in which the joint moves '
+            f'(>= {math.degrees(MIN_TRAVEL):.0f} deg of travel)', PARAMETERS)
+    inputs = [(r, filtered_pressures(r)) for r in used]
+    measured = np.concatenate([r.psi for r in used])
+    prior = np.array([params.mu_s, params.mu_p])
+
+    def residual(z):
+        mu_s, mu_p = prior * np.exp(z)
+        p = params.replace(mu_s=float(mu_s), mu_p=float(mu_p)).as_record_array()[0]
+        parts = []
+        for rec, P in inputs:
+            out = np.empty(len(rec.t))
+            joint_trajectory(float(rec.psi[0]), float(rec.psi_dot[0]), P[:, 0], P[:, 1], rec.dt,
+                             p, out)
+            parts.append(out)
+        return np.degrees(np.concatenate(parts) - measured)
+
+    grid = [(float(np.sum(residual(np.array([a, b])) ** 2)), a, b) for a in GRID for b in GRID]
+    _, a, b = min(grid)
+    sol = least_squares(residual, np.array([a, b]), method='trf', diff_step=1e-2, x_scale=0.1)
+    values = prior * np.exp(sol.x)
+    std = values * standard_errors(sol.jac, sol.fun, correlated=True)
+    estimates = tuple(Estimate(n, float(v), float(s), float(v0), u)
+                      for n, v, s, v0, u in zip(PARAMETERS, values, std, prior,
+                                                ('-', 'N m Pa^2')))
+    check_identified(estimates, 'friction')
+    notes = (f'{len(used)} free runs, pressures low-passed at {PRESSURE_FILTER_HZ:g} Hz',)
+    return (GroupFit('friction', estimates, float(np.sqrt(np.mean(sol.fun ** 2))), 'deg',
+                     len(measured), notes), dict(zip(PARAMETERS, map(float, values))))
