@@ -21,7 +21,7 @@ from rclpy.task import Future
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 from pam_driver.executors import run_node
-from pam_driver.node_params import (ParamSpec, check_all, declare_parameters,
+from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 from pam_driver.run_recorder import RunRecorder
 
@@ -34,8 +34,19 @@ QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.K
 PARAMETERS = (
     ParamSpec('profile', 'validation', 'string', '',
               "Input profile: 'validation' (the 130 s antagonistic profile shaped like the "
-              "paper's Fig. 8).", choices=('validation',)),
-    ParamSpec('duration', 130.0, 'double', 's', 'Length of the profile.', range=(0.01, 3600.0)),
+              "paper's Fig. 8); 'calibration_locked' (static holds then jumps of both valves, "
+              'for pam-identify; joint locked, length 16 x (hold + pair_hold) s); '
+              "'calibration_free' (antagonistic ramps and steps at three co-contraction levels, "
+              'for pam-identify; joint free).',
+              choices=('validation', 'calibration_locked', 'calibration_free')),
+    ParamSpec('duration', 130.0, 'double', 's',
+              'Length of the profile (validation, calibration_free).', range=(0.01, 3600.0)),
+    ParamSpec('hold', 10.0, 'double', 's',
+              'calibration_locked: static hold per voltage (0: skip the static holds).',
+              range=(0.0, 600.0)),
+    ParamSpec('pair_hold', 3.0, 'double', 's',
+              'calibration_locked: hold per voltage pair of the jump phase (0: skip it).',
+              range=(0.0, 600.0)),
     ParamSpec('seed', 0, 'integer', '', 'Seed of the profile.', range=(0, 2 ** 31 - 1)),
     ParamSpec('rate', 1000.0, 'double', 'Hz', 'Sample rate of the rig (one command per sample).',
               range=(100.0, 10000.0)),
@@ -59,6 +70,21 @@ SUMMARY = [
 ]
 
 
+def profile_inputs(values: dict):
+    """(N, 2) V: the chosen profile's valve voltages, one row per sample; ValueError if the
+    profile's own checks reject the values."""
+    from pam_model.calibration_profiles import (free_calibration_profile,
+                                                locked_calibration_profile)
+    from pam_model.profiles import validation_profile
+    Ts = 1.0 / values['rate']
+    if values['profile'] == 'calibration_locked':
+        return locked_calibration_profile(values['seed'], values['hold'], values['pair_hold'],
+                                          Ts=Ts).u
+    if values['profile'] == 'calibration_free':
+        return free_calibration_profile(values['seed'], values['duration'], Ts=Ts).u
+    return validation_profile(values['seed'], values['duration'], Ts).u
+
+
 class ProfilePlayer(Node):
     """Publishes one profile command per pressure sample until the profile ends."""
 
@@ -67,9 +93,11 @@ class ProfilePlayer(Node):
         super().__init__(NODE_NAME, **kwargs)
         values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
                                                        declare_parameters(self, PARAMETERS)))
-        from pam_model.profiles import validation_profile
         self.values = values
-        self.U = validation_profile(values['seed'], values['duration'], 1.0 / values['rate']).u
+        try:
+            self.U = profile_inputs(values)
+        except ValueError as exc:
+            raise ConfigError(f"profile {values['profile']!r}: {exc}") from exc
         self.recorder = RunRecorder(len(self.U), locked=values['joint_mode'] == 'locked')
         self.finished = Future()
         self.started = False
@@ -81,7 +109,7 @@ class ProfilePlayer(Node):
         self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
         self._startup_timer = self.create_timer(values['startup_timeout'], self._on_timeout)
         self.get_logger().info(
-            f"playing the {values['profile']} profile ({values['duration']:g} s, seed "
+            f"playing the {values['profile']} profile ({len(self.U) / values['rate']:g} s, seed "
             f"{values['seed']}) on {self.resolve_topic_name('valve_command')}, one command per "
             f"sample of {self.resolve_topic_name('pressures')}")
 
@@ -154,7 +182,8 @@ def main(args=None) -> int:
     argv = sys.argv if args is None else args
     if wants_help(argv):
         sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
-            f'{NODE_NAME} --ros-args -p duration:=30.0 -p save:=/tmp/run.npz']))
+            f'{NODE_NAME} --ros-args -p duration:=30.0 -p save:=/tmp/run.npz',
+            f'{NODE_NAME} --ros-args -p profile:=calibration_locked   # joint locked, bag_record on']))
         return 0
     return run_node(ProfilePlayer, NODE_NAME, args)
 

@@ -18,7 +18,7 @@ from ..valve_map import ValveMap
 from .fit_result import GroupFit, NotIdentifiable
 from .flow_fit import fit_flow
 from .force_fit import fit_forces, intercept_combinations
-from .friction_fit import fit_friction
+from .friction_fit import PARAMETERS as FRICTION_PARAMETERS, fit_friction
 from .valve_fit import fit_valve_map
 
 
@@ -67,6 +67,7 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
         fits.append(result[0])
         valve_map = result[1]
     result = attempt('force coefficients', lambda: fit_forces(records, prior))
+    forces_known = result is not None
     if result:
         fits.append(result[0])
         changes.update(result[1])
@@ -75,7 +76,13 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
         fits.append(result[0])
         changes.update(result[1])
         missing.extend(result[2])
-    result = attempt('friction', lambda: fit_friction(records, prior.replace(**changes)))
+    if forces_known:
+        result = attempt('friction', lambda: fit_friction(records, prior.replace(**changes)))
+    else:
+        result = None
+        missing.append(NotIdentifiable('mu_s and mu_p need the force coefficients identified '
+                                       'first (the friction fit compares angles the forces set)',
+                                       FRICTION_PARAMETERS))
     if result:
         fits.append(result[0])
         changes.update(result[1])

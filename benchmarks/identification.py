@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""Parameter identification before/after (pam-identify issue, section 3).
+
+For each plant mismatch ('mild', and 'strong' = twice its deviations), with the installed tools
+as a user runs them:
+  1. pam-calibration-bags: the calibration campaign (locked at -15/0/+15 deg, free) and, with
+     another seed, 130 s validation bags (free and locked) on that plant, as bags;
+  2. pam-identify on the calibration bags (prints the parameter table with the true values);
+  3. the pam-evaluate computation on the validation bags with the nominal and with the identified
+     parameters.
+Targets: UKF Q_psi <= 2 % and Q_tau <= 1.5 % after identification; identifiable parameters within
+a few percent of the plant's (printed per parameter by pam-identify; here the largest).
+
+    .venv/bin/python benchmarks/identification.py [--scenarios mild,strong] [--seed 0] [--keep DIR]
+"""
+
+import argparse
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from pam_estimator.bag_runs import load_run
+from pam_estimator.evaluation import evaluate, quantity
+from pam_estimator.pam_ukf import TUNINGS
+from pam_model.identification.force_fit import intercept_combinations
+from pam_model.mismatch import load_scenario
+from pam_model.model import PamModel
+from pam_model.parameters import load_parameters
+from pam_model.valve_map import load_valve_map
+
+TARGET_Q = {'angle': 0.020, 'torque': 0.015}
+#: Identifiable quantities and how to read them from a parameter set (effective areas: k1 A).
+IDENTIFIABLE = {
+    'p_v1, p_v2 (4)': lambda p: [p.p_v1_1, p.p_v2_1, p.p_v1_2, p.p_v2_2],
+    'w1(L0)-w2(L0)': lambda p: [intercept_combinations(p)[0]],
+    'p_w1 sum': lambda p: [intercept_combinations(p)[1]],
+    'k1 A1, k1 A2 (4)': lambda p: [p.k1 * p.A1_1, p.k1 * p.A2_1, p.k1 * p.A1_2, p.k1 * p.A2_2],
+    'k2': lambda p: [p.k2],
+    'mu_s': lambda p: [p.mu_s],
+    'mu_p': lambda p: [p.mu_p],
+}
+
+
+def run(cmd):
+    print('$ ' + ' '.join(str(c) for c in cmd), flush=True)
+    subprocess.run([str(c) for c in cmd], check=True)
+
+
+def tool(name: str) -> str:
+    path = Path(sys.executable).parent / name
+    return str(path) if path.exists() else name
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--scenarios', default='mild,strong')
+    parser.add_argument('--seed', type=int, default=0)
+    parser.add_argument('--keep', metavar='DIR', help='keep the bags and results in DIR')
+    args = parser.parse_args()
+    work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix='pam_identify_'))
+    nominal, nominal_map = load_parameters('default'), load_valve_map('default')
+    ok, rows = True, []
+    try:
+        for name in args.scenarios.split(','):
+            out = work / name
+            t0 = time.perf_counter()
+            run([tool('pam-calibration-bags'), out / 'bags', '--mismatch', name, '--seed',
+                 args.seed, '--validation', 130])
+            calibration = sorted((out / 'bags').glob('locked_*')) + [out / 'bags' / 'free']
+            run([tool('pam-identify'), *calibration, '-o', out / 'identified',
+                 '--truth-mismatch', name])
+            elapsed = time.perf_counter() - t0
+            identified = load_parameters(out / 'identified' / 'params.yaml')
+            identified_map = load_valve_map(out / 'identified' / 'kappa.csv')
+            truth = load_scenario(name).apply(nominal)
+            print(f'\n== {name}: parameters (relative error vs the plant; bags + identification '
+                  f'{elapsed:.0f} s)')
+            for label, read in IDENTIFIABLE.items():
+                before = max(abs(e / t - 1.0) for e, t in zip(read(nominal), read(truth)))
+                after = max(abs(e / t - 1.0) for e, t in zip(read(identified), read(truth)))
+                print(f'  {label:<18} nominal {100 * before:7.2f} %   identified {100 * after:6.2f} %')
+            print(f'== {name}: UKF on the validation bags (pam-evaluate)')
+            for mode in ('free', 'locked'):
+                bag = out / 'bags' / f'validation_{mode}'
+                record = load_run(bag)
+                kind = quantity(record)
+                results = {}
+                for label, params, kappa in (('nominal', nominal, nominal_map),
+                                             ('identified', identified, identified_map)):
+                    model = PamModel(params=params, valve_map=kappa, locked=record.locked)
+                    table, _, _ = evaluate(record, model, TUNINGS['default'])
+                    results[label] = table['ukf']
+                after = results['identified']
+                meets = after.Q <= TARGET_Q[kind]
+                ok = ok and meets
+                rows.append((name, kind, results['nominal'], after, meets))
+                print(f'  {kind}: pam-evaluate --params {out}/identified/params.yaml --kappa '
+                      f'{out}/identified/kappa.csv {bag}')
+    finally:
+        if not args.keep:
+            shutil.rmtree(work, ignore_errors=True)
+    print('\nplant    quantity  UKF before (nominal) I / M / Q         after (identified) '
+          'I / M / Q          target')
+    for name, kind, before, after, meets in rows:
+        unit = 'deg' if kind == 'angle' else 'N m'
+        print(f'{name:<8} {kind:<8}  {before.I:.4f} / {before.M:.4f} / {100 * before.Q:5.2f} %'
+              f'      {after.I:.4f} / {after.M:.4f} / {100 * after.Q:5.2f} % ({unit})'
+              f'   Q <= {100 * TARGET_Q[kind]:.1f} %: {"met" if meets else "MISSED"}')
+    print('all targets met' if ok else 'SOME TARGETS MISSED')
+
+
+if __name__ == '__main__':
+    main()
