@@ -40,7 +40,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     add_model_arguments(parser, laws=False)
     plan = CampaignPlan()
     parser.add_argument('--angles', type=float_list, default=plan.lock_angles, metavar='DEG,...',
-                        help='lock angles of the locked runs (default: -15,0,15)')
+                        help='lock angles of the locked runs; write --angles=-15,0,15 (with =) '
+                             'when the first is negative (default: -15,0,15)')
     parser.add_argument('--hold', type=float, default=plan.hold, metavar='S',
                         help='static hold per voltage (default: %(default)s; 0: none)')
     parser.add_argument('--pair-hold', type=float, default=plan.pair_hold, metavar='S',

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 
 from pam_model.cli.common import run_cli
 from pam_model.identification.identify import IdentificationError, format_report, identify
@@ -51,6 +52,9 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 def body(argv=None) -> int:
     args = parse_args(argv)
+    if Path(args.output).exists():
+        raise ValueError(f'{args.output}: already exists; not overwriting it (choose another '
+                         'output)')
     prior = load_parameters(args.prior)
     prior_map = load_valve_map(args.kappa_prior)
     records = []

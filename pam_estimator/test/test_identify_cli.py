@@ -1,0 +1,151 @@
+"""pam-calibration-bags and pam-identify as a user runs them, on bags of the simulated 'mild'
+plant; the identified files loaded by pam-evaluate's computation and by ukf_node; bad bags.
+
+The campaign is a short version of the default (8 hold voltages, lock angles -15/+15 deg, 30 s
+free run): about 4 min of simulated rig in bags. Tolerances as in pam_model's identification
+tests (the fits are the same; here the path through bags and files is under test).
+"""
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from pam_driver.bags import BagWriter, load_bag
+from pam_driver.testing import executable
+from pam_estimator.bag_runs import load_run
+from pam_estimator.evaluation import evaluate
+from pam_estimator.pam_ukf import TUNINGS
+from pam_model.identification.force_fit import intercept_combinations
+from pam_model.mismatch import load_scenario
+from pam_model.model import PamModel
+from pam_model.parameters import load_parameters
+from pam_model.valve_map import load_valve_map
+
+CAMPAIGN = ('--angles=-15,15', '--voltages', '0,2,4,5,5.5,6,7,10', '--free-duration', '30',
+            '--seed', '3', '--validation', '20', '--mismatch', 'mild')
+CALIBRATION = ('locked_m15deg', 'locked_p15deg', 'free')
+
+
+def run(*args):
+    return subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=600)
+
+
+def identify(*args):
+    return run(executable('pam-identify', 'pam_estimator'), *args)
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    out = tmp_path_factory.mktemp('campaign') / 'bags'
+    result = run(executable('pam-calibration-bags', 'pam_estimator'), out, *CAMPAIGN)
+    assert result.returncode == 0, result.stderr
+    for name in (*CALIBRATION, 'validation_free', 'validation_locked'):
+        assert (out / name / 'metadata.yaml').is_file(), name
+    return out
+
+
+@pytest.fixture(scope='module')
+def identified(bags, tmp_path_factory):
+    out = tmp_path_factory.mktemp('identified') / 'result'
+    result = identify(*(bags / n for n in CALIBRATION), '-o', out, '--truth-mismatch', 'mild')
+    assert result.returncode == 0, result.stderr + result.stdout
+    return out, result.stdout
+
+
+def test_identify_recovers_the_plant_and_writes_loadable_files(identified):
+    out, stdout = identified
+    for group in ('[valve_map]', '[forces]', '[flow]', '[friction]'):
+        assert group in stdout
+    assert f'wrote {out}/params.yaml' in stdout and 'model_parameters:=' in stdout
+    assert '[friction]' in (out / 'report.txt').read_text()
+    params = load_parameters(out / 'params.yaml')
+    truth = load_scenario('mild').apply(load_parameters())
+    for f in ('p_v1_1', 'p_v2_1', 'p_v1_2', 'p_v2_2'):
+        assert abs(getattr(params, f) / getattr(truth, f) - 1.0) < 0.005, f
+    assert abs(intercept_combinations(params)[0] - intercept_combinations(truth)[0]) < 0.1
+    assert abs(params.k1 * params.A1_1 / (truth.k1 * truth.A1_1) - 1.0) < 0.02
+    assert abs(params.mu_s / truth.mu_s - 1.0) < 0.08
+    kappa = load_valve_map(out / 'kappa.csv')
+    np.testing.assert_allclose(kappa.alpha, load_valve_map()(kappa.u), atol=0.005)
+
+
+def test_the_identified_model_beats_the_nominal_one_on_a_validation_bag(bags, identified):
+    out, _ = identified
+    params, kappa = load_parameters(out / 'params.yaml'), load_valve_map(out / 'kappa.csv')
+    for mode in ('free', 'locked'):
+        record = load_run(bags / f'validation_{mode}')
+        q = {}
+        for label, p, k in (('nominal', load_parameters(), load_valve_map()),
+                            ('identified', params, kappa)):
+            table, _, _ = evaluate(record, PamModel(params=p, valve_map=k, locked=record.locked),
+                                   TUNINGS['default'])
+            q[label] = table['ukf'].Q
+        assert q['identified'] < 0.01 and q['identified'] < 0.3 * q['nominal'], (mode, q)
+    result = run(executable('pam-evaluate', 'pam_estimator'), '--params', out / 'params.yaml',
+                 '--kappa', out / 'kappa.csv', bags / 'validation_free')
+    assert result.returncode == 0, result.stderr
+
+
+def test_ukf_node_loads_the_identified_files(identified, node_process):
+    out, _ = identified
+    ukf = node_process('ukf_node', 'pam_estimator', '--ros-args', '-p',
+                       f'model_parameters:={out}/params.yaml', '-p', f'valve_map:={out}/kappa.csv')
+    ukf.wait_for(lambda: 'estimating:' in ukf.stderr + ukf.stdout, 60.0, 'ukf_node start')
+    assert f'{out}/params.yaml' in ukf.stderr + ukf.stdout
+    assert ukf.alive()
+
+
+def test_missing_runs_are_named_and_nothing_is_written(bags, tmp_path):
+    out = tmp_path / 'result'
+    result = identify(bags / 'free', '-o', out)
+    assert result.returncode == 2
+    assert 'kappa(u) needs settled static holds' in result.stderr
+    assert 'force coefficients need a locked-joint run' in result.stderr
+    assert 'pam1.p_v1' in result.stderr and 'nothing written' in result.stderr
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_partial_identification_keeps_the_prior_where_it_must(bags, tmp_path):
+    out = tmp_path / 'result'
+    result = identify(bags / 'locked_m15deg', bags / 'locked_p15deg', '-o', out, '--partial')
+    assert result.returncode == 0, result.stderr
+    assert 'NOT identified' in result.stdout and 'PARTIAL' in result.stdout
+    params, prior = load_parameters(out / 'params.yaml'), load_parameters()
+    assert params.mu_s == prior.mu_s and params.k2 == prior.k2
+    assert params.p_v1_1 != prior.p_v1_1
+
+
+def test_a_bag_without_valve_commands_is_refused(bags, tmp_path):
+    source = load_bag(bags / 'free', topics=['/pam/pressures', '/pam/joint_measured'])
+    writer = BagWriter(tmp_path / 'no_commands')
+    for topic, msgtype in source.topics.items():
+        writer.add_topic(topic, msgtype)
+    for t, i, data in zip(source.times, source.topic_index, source.data):
+        writer.write(source.topic_names[i], t, data)
+    writer.close()
+    result = identify(tmp_path / 'no_commands', '-o', tmp_path / 'result')
+    assert result.returncode == 2
+    assert 'no /pam/valve_command messages' in result.stderr
+    assert not (tmp_path / 'result').exists()
+
+
+def test_a_truncated_bag_is_refused_with_its_name(bags, tmp_path):
+    broken = tmp_path / 'broken'
+    shutil.copytree(bags / 'free', broken)
+    mcap = broken / 'free.mcap'
+    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size // 2])
+    result = identify(broken, '-o', tmp_path / 'result')
+    assert result.returncode == 2
+    assert 'error:' in result.stderr and str(broken) in result.stderr
+    assert not (tmp_path / 'result').exists()
+
+
+def test_an_existing_output_is_never_overwritten(bags, tmp_path):
+    out = tmp_path / 'result'
+    out.mkdir()
+    (out / 'params.yaml').write_text('mine\n')
+    result = identify(*(bags / n for n in CALIBRATION), '-o', out)
+    assert result.returncode == 2 and 'already exists' in result.stderr
+    assert (out / 'params.yaml').read_text() == 'mine\n'
