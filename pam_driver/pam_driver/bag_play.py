@@ -5,13 +5,15 @@ The bag (or the selected topics from `start_offset` on) is loaded into memory be
 (reading while playing stalls the sends: shared/BAGS.md); a dedicated thread then publishes each
 message's CDR bytes at t0 + (t_msg − t_first) / rate on absolute deadlines (no drift). Options:
 rate factor, loop, topic selection, remapping, start offset, start paused (resume with the
-`~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate.
+`~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate
+(the frozen bag time while paused, as `ros2 bag play --clock` does).
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
 package) is one error line naming the file and the problem, exit code 2.
 """
 
 from __future__ import annotations
 
+import collections
 import sys
 import threading
 import time
@@ -28,6 +30,7 @@ from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_p
 
 NODE_NAME = 'bag_play'
 SPIN_AHEAD = 0.0005   # s: sleep until this close to a deadline, then busy-wait
+LATENESS_KEPT = 1_000_000   # send latenesses kept for the p50/p99 report (bounded when looping)
 
 PARAMETERS = (
     ParamSpec('bag', '', 'string', '', 'Bag directory (with metadata.yaml) to play.'),
@@ -41,7 +44,7 @@ PARAMETERS = (
     ParamSpec('start_paused', False, 'bool', '',
               'Wait for the ~/resume service (std_srvs/Trigger) before playing.'),
     ParamSpec('clock', 0.0, 'double', 'Hz',
-              'Publish the bag time on /clock at this rate while playing; 0: no /clock.',
+              'Publish the bag time on /clock at this rate (also while paused); 0: no /clock.',
               range=(0.0, 10000.0)),
     ParamSpec('delay', 0.5, 'double', 's',
               'Wait this long after creating the publishers (for subscribers to match).',
@@ -97,7 +100,7 @@ class BagPlayer(Node):
         self.create_service(Trigger, '~/resume', self._on_resume)
         self.create_service(Trigger, '~/pause', self._on_pause)
         self.finished = Future()
-        self.lateness_ns: list[int] = []
+        self.lateness_ns: collections.deque = collections.deque(maxlen=LATENESS_KEPT)
         self.published = 0
         self._running = threading.Event()
         if not values['start_paused']:
@@ -134,15 +137,16 @@ class BagPlayer(Node):
         self._running.clear()
         return response
 
-    def _wait_running(self) -> int:
-        """Block while paused; returns the paused time in ns."""
-        if self._running.is_set():
-            return 0
-        t = time.monotonic_ns()
-        while not self._running.wait(0.1):
-            if self._quit.is_set():
-                break
-        return time.monotonic_ns() - t
+    def _wait_running(self, bag_ns: int) -> int:
+        """Block while paused, publishing /clock at the frozen bag time `bag_ns`; returns the
+        paused time in ns."""
+        start = time.monotonic_ns()
+        period = 1.0 / self.values['clock'] if self.clock_pub is not None else 0.1
+        while not self._running.is_set() and not self._quit.is_set():
+            if self.clock_pub is not None:
+                self._publish_clock(bag_ns)
+            self._running.wait(period)
+        return time.monotonic_ns() - start
 
     def _publish_clock(self, bag_ns: int) -> None:
         msg = self._clock_msg()
@@ -160,23 +164,23 @@ class BagPlayer(Node):
         time.sleep(self.values['delay'])
         bag, pubs = self.bag, self.publishers_by_index
         times, tix, data = bag.times, bag.topic_index, bag.data
+        if not times:
+            return
         rate = self.values['rate']
         clock_period = (1e9 / self.values['clock']) if self.clock_pub is not None else None
         lateness = self.lateness_ns
+        first = min(bag.start_ns + round(self.values['start_offset'] * 1e9), times[0])
         while not self._quit.is_set():
-            if not times:
-                return
-            first = bag.start_ns + int(self.values['start_offset'] * 1e9)
-            first = min(first, times[0])
-            t0 = time.monotonic_ns() + self._wait_running()
-            next_clock = 0.0
+            self._wait_running(first)
+            t0 = time.monotonic_ns()
+            next_clock = t0
             for i in range(len(times)):
                 due = t0 + int((times[i] - first) / rate)
                 while True:
                     if self._quit.is_set():
                         return
                     if not self._running.is_set():
-                        paused = self._wait_running()
+                        paused = self._wait_running(first + (time.monotonic_ns() - t0) * rate)
                         t0 += paused
                         due += paused
                     now = time.monotonic_ns()

@@ -3,11 +3,12 @@
 The bag layout is Jazzy's (see shared/BAGS.md): a directory with metadata.yaml version 9 and one
 `<dir>.mcap` file, profile ros2, one ros2msg schema per type with its full definition, one channel
 per topic with metadata offered_qos_profiles and topic_type_hash (RIHS01), a rosbag2 metadata
-record, zstd chunk compression and the per-message index. Writing goes through rosbags' Writer
-with a storage writer that also writes topic_type_hash, closes a chunk at least every
-`chunk_interval` seconds and writes it to disk at once (unbuffered), so that a crash loses at most
-the last chunk, and a write error leaves the file truncated to its last complete chunk and closed
-with a valid summary (a readable bag of what was written).
+record, zstd chunk compression and the per-message index; ros_distro 'jazzy' in metadata.yaml and
+in that record, as rosbag2 Jazzy writes. Writing goes through rosbags' Writer with a storage
+writer that also writes topic_type_hash, closes a chunk at least every `chunk_interval` seconds
+and writes it to disk at once (unbuffered), so that a crash loses at most the last chunk, and a
+write error leaves the file truncated to its last complete chunk and closed with a valid summary
+(a readable bag of what was written).
 
 Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, registered from their
 .msg files (their RIHS01 hashes equal rosidl's).
@@ -16,6 +17,7 @@ Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, regis
 from __future__ import annotations
 
 import os
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +25,7 @@ from pathlib import Path
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 METADATA = 'metadata.yaml'
 DEFAULT_CHUNK_INTERVAL = 1.0   # s: longest time a received message stays only in memory
+ROS_DISTRO = 'jazzy'   # the bags' ros_distro (rosbag2 writes $ROS_DISTRO; rosbags 'rosbags')
 
 
 class BagError(RuntimeError):
@@ -99,6 +102,12 @@ def qos_from_ints(history: int, depth: int, reliability: int, durability: int, l
 
 
 # ------------------------------------------------------------------------------- writing
+def _with_distro(metadata_yaml: str) -> str:
+    """rosbags' metadata YAML with ros_distro set to ROS_DISTRO (rosbags writes 'rosbags')."""
+    return re.sub(r'^(\s*ros_distro:) rosbags$', rf'\1 {ROS_DISTRO}', metadata_yaml,
+                  flags=re.MULTILINE)
+
+
 class _FullWrite:
     """An unbuffered file that writes everything or raises (a short write becomes an OSError)."""
 
@@ -198,6 +207,9 @@ def _storage_writer_class():
             self._committed_times = (self.message_start_time, self.message_end_time)
             self._committed_chunks = len(self.chunks)
 
+        def close(self, version, metadata):
+            super().close(version, _with_distro(metadata))   # the MCAP 'rosbag2' record
+
     return PamMcapWriter
 
 
@@ -293,6 +305,10 @@ class BagWriter:
                 storage.message_start_time, storage.message_end_time)
         try:
             self._writer.close()
+            meta = self.path / METADATA
+            tmp = meta.with_suffix('.yaml.tmp')
+            tmp.write_text(_with_distro(meta.read_text()))
+            tmp.replace(meta)
         except OSError as exc:
             raise BagWriteError(f'{self.path}: cannot finish the bag: {exc}') from exc
 
@@ -384,7 +400,7 @@ def load_bag(path, topics=None, start_offset: float = 0.0) -> BagContents:
                                f'{", ".join(sorted(reader.topics))})')
         names = sorted({c.topic for c in conns})
         index = {n: i for i, n in enumerate(names)}
-        start = reader.start_time + int(start_offset * 1e9)
+        start = reader.start_time + round(start_offset * 1e9)
         contents = BagContents(path, {c.topic: c.msgtype for c in conns},
                                {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
                                [], [], names, [], reader.start_time, reader.end_time)
@@ -401,6 +417,18 @@ def load_bag(path, topics=None, start_offset: float = 0.0) -> BagContents:
         return contents
     finally:
         reader.close()
+
+
+def embedded_metadata(mcap_path) -> dict:
+    """The bag metadata rosbag2 also stores in the MCAP file (its 'rosbag2' metadata record,
+    key serialized_metadata: the metadata.yaml content); {} if there is none."""
+    from mcap.reader import make_reader
+    from ruamel.yaml import YAML
+    with open(mcap_path, 'rb') as f:
+        for record in make_reader(f).iter_metadata():
+            if record.name == 'rosbag2' and 'serialized_metadata' in record.metadata:
+                return YAML(typ='safe').load(record.metadata['serialized_metadata'])
+    return {}
 
 
 def bag_info(path) -> dict:
@@ -429,6 +457,7 @@ def bag_info(path) -> dict:
             'storage': meta['storage_identifier'], 'files': [str(f) for f in files],
             'size': sum(f.stat().st_size for f in files), 'duration': duration,
             'start_ns': meta['starting_time']['nanoseconds_since_epoch'],
+            'ros_distro': meta.get('ros_distro', ''),
             'message_count': meta['message_count'],
             'compression': ', '.join(sorted(chunk_compression)) or 'none',
             'compression_mode': (meta.get('compression_mode') or

@@ -22,11 +22,13 @@ def pressures(store, i):
     return bytes(store.serialize_cdr(msg, PRESSURES))
 
 
-def write_bag(store, path, n=3000, **kw):
+def write_bag(store, path, n=3000, period_ns=10**6, **kw):
+    """n Pressures messages (p1 = 1e5 + index) received every period_ns from 1e18 ns on; also
+    used by test_bags_nodes."""
     w = bags.BagWriter(path, typestore=store, **kw)
     w.add_topic('/pam/pressures', PRESSURES, [bags.make_qos()])
     for i in range(n):
-        w.write('/pam/pressures', 10**18 + i * 10**6, pressures(store, i))
+        w.write('/pam/pressures', 10**18 + i * period_ns, pressures(store, i))
     w.close()
     return w
 
@@ -59,6 +61,15 @@ def test_round_trip_and_mcap_readers(store, tmp_path):
     info = bags.bag_info(tmp_path / 'b')
     assert info['version'] == 9 and info['topics'][0]['count'] == 3000
     assert abs(info['topics'][0]['rate'] - 1000.0) < 1.0
+
+
+def test_metadata_names_jazzy_like_rosbag2(store, tmp_path):
+    """ros_distro is what rosbag2 Jazzy writes, in metadata.yaml and in the MCAP 'rosbag2'
+    metadata record (its serialized_metadata), not rosbags' 'rosbags'."""
+    write_bag(store, tmp_path / 'b', n=10)
+    assert bags.bag_info(tmp_path / 'b')['ros_distro'] == 'jazzy'
+    embedded = bags.embedded_metadata(tmp_path / 'b' / 'b.mcap')
+    assert embedded['ros_distro'] == 'jazzy' and embedded['message_count'] == 10
 
 
 def test_existing_output_is_refused(store, tmp_path):

@@ -1,4 +1,4 @@
-"""bag_record / bag_play / pam-bag-info as real processes on an isolated domain (~25 s)."""
+"""bag_record / bag_play / pam-bag-info as real processes on an isolated domain (~50 s)."""
 
 import subprocess
 import time
@@ -6,10 +6,11 @@ from pathlib import Path
 
 import pytest
 
-from pam_driver.testing import executable, stamp_ns
+from pam_driver.testing import executable, stamp_ns, wait_until
 
 RECORD_S = 3.0
 _CACHE = {}
+N, PERIOD = 100, 20_000_000   # the small test bag: N Pressures samples every PERIOD ns (1.98 s)
 
 
 def record(node_process, out: Path):
@@ -120,3 +121,109 @@ def test_bag_info_prints_counts():
     bad = subprocess.run([executable('pam-bag-info', 'pam_driver'), str(bag.parent / 'nope')],
                          capture_output=True, text=True, timeout=30)
     assert bad.returncode == 1 and 'no such bag directory' in bad.stderr
+
+
+# ------------------------------------------------------------- bag_play options on a small bag
+@pytest.fixture(scope='module')
+def small_bag(tmp_path_factory):
+    from test_bags_lib import write_bag   # the same test folder (pytest's prepend import mode)
+    from pam_driver.bags import make_typestore
+    path = tmp_path_factory.mktemp('small') / 'b'
+    write_bag(make_typestore(), path, n=N, period_ns=PERIOD)
+    return path
+
+
+def index(msg) -> int:
+    """The sample index the small bag's message carries."""
+    return round(msg.p1 - 1e5)
+
+
+def play(node_process, bag, *params, delay=1.5, name='bag_play'):
+    """bag_play on `bag` with `-p` params; delay: s for the test's subscriptions to match."""
+    args = [a for p in (f'bag:={bag}', f'delay:={delay}', *params) for a in ('-p', p)]
+    return node_process('bag_play', 'pam_driver', *args, '-r', f'__node:={name}')
+
+
+def pressures(probe, topic='/pam/pressures'):
+    from pam_interfaces.msg import Pressures
+    return probe.subscribe(Pressures, topic, depth=1000)
+
+
+def test_rate_scales_the_schedule(node_process, probe, small_bag):
+    """Two players at once, rates 1 and 2: the receive span at rate 2 is half the other."""
+    rates = (1.0, 2.0)
+    got = [pressures(probe, f'/rate{i}/pressures') for i in range(len(rates))]
+    players = [play(node_process, small_bag, f'rate:={r}', f'remap:=/pam/pressures:=/rate{i}/'
+                    'pressures', name=f'play{i}') for i, r in enumerate(rates)]
+    spans = []
+    for player, received in zip(players, got):
+        player.wait_for(lambda received=received: len(received) >= N, 30.0, f'{N} messages')
+        assert player.wait_exit(10.0) == 0, player.stderr
+        items = received.items()
+        assert [index(m) for _, m in items] == list(range(N))
+        spans.append(items[-1][0] - items[0][0])
+    assert 0.4 < spans[1] / spans[0] < 0.6, spans
+    assert 0.8 < spans[0] / ((N - 1) * PERIOD * 1e-9) < 1.2, spans
+
+
+def test_loop_plays_again_after_the_end(node_process, probe, small_bag):
+    got = pressures(probe)
+    player = play(node_process, small_bag, 'loop:=true', 'rate:=4.0')
+    player.wait_for(lambda: len(got) >= 2 * N + 10, 30.0, 'two loops and more')
+    assert player.alive()
+    assert player.stop() == 0
+    seen = [index(m) for m in got.messages()]
+    assert all(b == (a + 1) % N for a, b in zip(seen, seen[1:])), 'not in bag order'
+    assert sum(a == N - 1 and b == 0 for a, b in zip(seen, seen[1:])) >= 2
+
+
+def test_start_offset_starts_at_the_message_at_the_offset(node_process, probe, small_bag):
+    got = pressures(probe)
+    player = play(node_process, small_bag, 'start_offset:=1.0', 'rate:=4.0')
+    assert player.wait_exit(30.0) == 0, player.stderr
+    first = round(1.0e9 / PERIOD)
+    wait_until(lambda: len(got) >= N - first, 5.0)
+    assert [index(m) for m in got.messages()] == list(range(first, N))
+
+
+def test_start_paused_plays_nothing_until_resumed(node_process, probe, small_bag):
+    """Paused: no message, /clock at the bag's start time; ~/resume plays all of it."""
+    from rosgraph_msgs.msg import Clock
+    from std_srvs.srv import Trigger
+    got = pressures(probe)
+    clock = probe.subscribe(Clock, '/clock', depth=1000)
+    player = play(node_process, small_bag, 'start_paused:=true', 'rate:=4.0', 'clock:=20.0',
+                  delay=0.2)
+    client = probe.node.create_client(Trigger, '/bag_play/resume')
+    assert client.wait_for_service(timeout_sec=30.0), player.stderr
+    player.wait_for(lambda: probe.node.count_publishers('/pam/pressures') > 0, 30.0,
+                    'the publisher')
+    time.sleep(1.5)    # > delay + the bag's 0.5 s at rate 4: all of it, were it not paused
+    assert len(got) == 0
+    frozen = [stamp_ns(m.clock) for m in clock.messages()]
+    assert len(frozen) >= 10 and set(frozen) == {10**18}, frozen
+
+    future = client.call_async(Trigger.Request())
+    assert wait_until(future.done, 10.0), 'no answer from ~/resume'
+    assert future.result().success
+    player.wait_for(lambda: len(got) >= N, 30.0, f'{N} messages after resuming')
+    assert [index(m) for m in got.messages()] == list(range(N))
+    assert player.wait_exit(10.0) == 0
+
+
+def test_clock_publishes_the_bag_time_at_the_requested_rate(node_process, probe, small_bag):
+    import numpy as np
+    from rosgraph_msgs.msg import Clock
+    clock = probe.subscribe(Clock, '/clock', depth=1000)
+    player = play(node_process, small_bag, 'clock:=50.0', 'rate:=2.0')
+    assert player.wait_exit(30.0) == 0, player.stderr
+    items = clock.items()
+    assert len(items) > 10, f'{len(items)} /clock messages'
+    wall = np.array([r for r, _ in items])
+    bag_ns = np.array([stamp_ns(m.clock) for _, m in items])
+    start, end = 10**18, 10**18 + (N - 1) * PERIOD     # the bag's first and last receive times
+    assert np.all(np.diff(bag_ns) >= 0)
+    assert start <= bag_ns[0] < start + 0.1e9 and end - 0.1e9 < bag_ns[-1] <= end, bag_ns
+    span = wall[-1] - wall[0]
+    assert 35.0 < (len(items) - 1) / span < 65.0         # 50 Hz of wall time
+    assert 1.6 < (bag_ns[-1] - bag_ns[0]) * 1e-9 / span < 2.4   # bag time runs at rate 2

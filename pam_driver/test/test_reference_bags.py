@@ -1,6 +1,6 @@
-"""The reference bags in bags/: readable by rosbags and by mcap + mcap_ros2 (embedded schemas
-alone), and structurally what Jazzy's rosbag2 writes (summary, chunk indexes, one schema per
-type, channel metadata, counts)."""
+"""The reference bags in bags/ (every bag directory there): readable by rosbags and by mcap +
+mcap_ros2 (embedded schemas alone), and structurally what Jazzy's rosbag2 writes (summary, chunk
+indexes, one schema per type, channel metadata, counts, ros_distro)."""
 
 from collections import Counter
 from pathlib import Path
@@ -11,13 +11,17 @@ from pam_driver import bags
 
 BAG_ROOT = Path(__file__).resolve().parents[2] / 'bags'
 REFERENCE = sorted(p for p in BAG_ROOT.glob('*') if (p / bags.METADATA).is_file())
-EXPECTED = {'validation_mild_free', 'validation_mild_locked'}
+EXPECTED = {'validation_mild_free', 'validation_mild_locked', 'closed_mild_angle',
+            'closed_mild_torque'}
+OPEN_LOOP = {'/pam/pressures', '/pam/valve_command', '/pam/joint_measured'}
+TOPICS = {'validation': OPEN_LOOP,   # by the bag name's first word (bags/README.md)
+          'closed': OPEN_LOOP | {'/pam/estimate', '/pam/reference'}}
 
 
 def test_the_reference_bags_are_there_and_small():
     assert EXPECTED <= {p.name for p in REFERENCE}
     total = sum(f.stat().st_size for f in BAG_ROOT.rglob('*') if f.is_file())
-    assert total < 6.3e6
+    assert total < 13e6
     for f in BAG_ROOT.rglob('*.mcap'):
         assert f.stat().st_size < 4e6
 
@@ -41,7 +45,8 @@ def _rosbags_counts(path):
 
 def test_rosbags_reads_and_decodes_every_message(bag):
     counts = _rosbags_counts(bag)
-    assert {'/pam/pressures', '/pam/valve_command', '/pam/joint_measured'} <= set(counts)
+    assert set(counts) == TOPICS[bag.name.split('_')[0]]
+    assert counts['/pam/pressures'] > 10_000     # > 10 s at 1 kHz
     assert min(counts.values()) > 1000
 
 
@@ -68,7 +73,8 @@ def test_mcap_ros2_decodes_from_the_embedded_schemas_and_the_structure_is_jazzys
             assert 'reliability' in channel.metadata['offered_qos_profiles']
             assert summary.schemas[channel.schema_id].name in (
                 'pam_interfaces/msg/Pressures', 'pam_interfaces/msg/ValveCommand',
-                'pam_interfaces/msg/JointMeasurement', 'pam_interfaces/msg/JointEstimate')
+                'pam_interfaces/msg/JointMeasurement', 'pam_interfaces/msg/JointEstimate',
+                'pam_interfaces/msg/Reference')
         decoded = Counter()
         for _, channel, _, msg in reader.iter_decoded_messages():
             assert msg.header.stamp.sec >= 0
@@ -78,4 +84,6 @@ def test_mcap_ros2_decodes_from_the_embedded_schemas_and_the_structure_is_jazzys
     assert stats == dict(decoded) == dict(_rosbags_counts(bag))
     info = bags.bag_info(bag)
     assert {t['name']: t['count'] for t in info['topics']} == stats
-    assert info['version'] == 9 and info['storage'] == 'mcap'
+    assert info['version'] == 9 and info['storage'] == 'mcap' and info['ros_distro'] == 'jazzy'
+    embedded = bags.embedded_metadata(files[0])
+    assert embedded['ros_distro'] == 'jazzy' and embedded['message_count'] == sum(stats.values())
