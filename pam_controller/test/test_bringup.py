@@ -5,7 +5,8 @@ about 1 kHz, prefixed logs, the default params file's sections picked), SIGTERM 
 child, a child that dies makes pam-bringup fail naming it, the full stack (with pi_node and
 reference_node) runs closed loop at 1 kHz until a Ctrl-C (SIGINT) stops it cleanly, and
 `--rig driver` runs driver_node against pam-emulator (pressures and estimates at about 1 kHz, a
-clean stop) and runs on, retrying, when the port does not exist.
+clean stop), runs on, retrying, when the port does not exist, and arms driver_node (~/arm) once
+pi_node's commands flow.
 """
 
 from __future__ import annotations
@@ -80,8 +81,8 @@ def test_help_exits_0():
     run = subprocess.run([executable('pam-bringup', 'pam_controller'), '--help'],
                          capture_output=True, text=True, timeout=30)
     assert run.returncode == 0, run.stderr
-    for option in ('--params-file', '--rig', '--no-controller', '--no-reference', '--duration',
-                   '--domain-id', '--namespace', '--log-dir'):
+    for option in ('--params-file', '--rig', '--no-controller', '--no-reference', '--no-arm',
+                   '--duration', '--domain-id', '--namespace', '--log-dir'):
         assert option in run.stdout
 
 
@@ -180,10 +181,11 @@ def test_full_stack_runs_closed_loop_until_ctrl_c(node_process, probe, ros_domai
 
 
 # ---------------------------------------------------------------------------- --rig driver
-def driver_params(tmp_path, port) -> Path:
-    """The default params file with driver_node's port pointed at `port`."""
+def driver_params(tmp_path, port, **overrides) -> Path:
+    """The default params file with driver_node's port pointed at `port` (and other overrides
+    of driver_node's parameters)."""
     data = yaml.safe_load(default_params_file().read_text())
-    data['/pam/driver_node']['ros__parameters']['port'] = str(port)
+    data['/pam/driver_node']['ros__parameters'].update(port=str(port), **overrides)
     path = tmp_path / 'bringup_driver.yaml'
     path.write_text(yaml.safe_dump(data))
     return path
@@ -197,11 +199,17 @@ def stamp_rate(collector, window: float) -> float:
     return (len(inside) - 1) / window
 
 
-def test_rig_driver_runs_against_the_emulator(node_process, probe, ros_domain, tmp_path):
+def start_emulator(node_process, tmp_path):
+    """pam-emulator (the 'mild' plant) on a pty linked at tmp_path/pam_daq: (process, link)."""
     link = tmp_path / 'pam_daq'
     emulator = node_process('pam-emulator', 'pam_driver', '--link', str(link), '--mismatch',
                             'mild', raw=True)
     emulator.wait_for(link.is_symlink, STARTUP_TIMEOUT, 'the emulator pty link')
+    return emulator, link
+
+
+def test_rig_driver_runs_against_the_emulator(node_process, probe, ros_domain, tmp_path):
+    emulator, link = start_emulator(node_process, tmp_path)
     pressures = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
     estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=1000)
     run = bringup(node_process, ros_domain, '--rig', 'driver', '--no-controller',
@@ -241,3 +249,26 @@ def test_rig_driver_with_a_missing_port_keeps_retrying(node_process, ros_domain,
     code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
     assert_clean_exit(code, run.stdout + run.stderr)
     assert any('retrying in' in line for line in prefixed(run.stdout, 'driver_node')), run.stdout
+
+
+def test_rig_driver_is_armed_once_the_controller_runs(node_process, probe, ros_domain, tmp_path):
+    """driver_node latched safe at start-up (here: arm_at_start false, as after a start-up stall
+    of the controller longer than the watchdog): pam-bringup calls ~/arm once pi_node's commands
+    flow, and they reach the valves without a manual step."""
+    emulator, link = start_emulator(node_process, tmp_path)
+    applied = probe.subscribe(ValveCommand, '/pam/driver_node/applied_command', depth=1000)
+    # a 0.5 s watchdog: a stall of this loaded machine must not latch it again before the check
+    params = driver_params(tmp_path, link, arm_at_start=False, watchdog_timeout=0.5)
+    run = bringup(node_process, ros_domain, '--rig', 'driver', '--no-reference',
+                  '--params-file', str(params))
+    run.wait_for(lambda: '/pam/driver_node/arm: armed' in run.stdout, STARTUP_TIMEOUT,
+                 'pam-bringup arming driver_node')
+    arming = next(line for line in prefixed(run.stdout, 'pam-bringup') if 'arm: armed' in line)
+    assert 'was safe: not armed at start' in arming, arming
+    run.wait_for(lambda: any((m.u1, m.u2) != (0.0, 0.0) for m in applied.messages()), 5.0,
+                 "pi_node's commands on the valves")
+    run.proc.send_signal(signal.SIGINT)
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    assert_clean_exit(code, run.stdout + run.stderr)
+    assert set(started_pids(run.stdout)) == {'driver_node', 'ukf_node', 'pi_node'}, run.stdout
+    assert emulator.alive()

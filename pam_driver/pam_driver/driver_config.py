@@ -45,6 +45,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('reconnect_backoff', [0.1, 2.0], 'double[]', 's',
               'Reconnect delays [first, max]: doubled after each failed attempt.'),
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published headers.'),
+    ParamSpec('inject_internal_error', 0.0, 'double', 's',
+              'Fault injection for tests: raise an internal error in the serial thread this long '
+              'after the first valve_command reached the valves, once (exercises the safe output '
+              'on an exception). 0: never.', range=(0.0, 3600.0)),
 )
 
 SUMMARY = (

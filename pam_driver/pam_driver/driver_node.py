@@ -17,14 +17,16 @@ heartbeat, the command watchdog, reconnect with exponential backoff); the execut
 writes COMMAND frames under a lock.
 
 Safety (the choice, documented in README and PROTOCOL.md): the driver is either ARMED (valid
-commands, clipped to valve_limits, go to the valves) or SAFE (safe_output, default 0 V = vent
-both muscles). It goes SAFE, latched, on: the command watchdog (no valid command for
-watchdog_timeout after one was received), ~/estop, a pressure sensor fault (out of range or stuck),
-the device lost (unplugged, silent, handshake failed) and any internal exception. It goes back to
-ARMED only through ~/arm, which is refused while the device is not connected or a sensor fault
-persists; even then the valves stay at safe_output until the next valid command. At shutdown the
-driver sends safe_output before closing the port. The board itself vents both valves when no host
-frame arrives for 250 ms (its own watchdog).
+commands, clipped to valve_limits, go to the valves) or SAFE (safe_output, default 0 V = vent both
+muscles). It goes SAFE, latched, on: the command watchdog (no valid command for watchdog_timeout
+after one was received), ~/estop, a pressure sensor fault (out of range or stuck), the device lost
+(unplugged, silent, handshake failed), a device refused at the handshake (another major protocol
+version: it gets nothing but HELLO) and any internal exception (the safe COMMAND is written before
+the port is closed). It goes back to ARMED only through ~/arm, which is refused while the device is
+not connected or a sensor fault persists; even then the valves stay at safe_output until the next
+valid command. At shutdown (SIGINT, SIGTERM) the driver sends safe_output before closing the port.
+The port is opened for exclusive use (flock): a second driver on it is refused. The board itself
+vents both valves when no host frame arrives for 250 ms (its own watchdog).
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ HARDWARE_ID = 'pam-daq-board'
 DIAGNOSTICS_PERIOD = 1.0
 LOG_THROTTLE = 1.0
 OUT_OF_RANGE_SAMPLES = 5      # consecutive implausible readings -> sensor fault
+REFUSED_LOG_PERIOD = 10.0     # s, an incompatible device is logged again at most this often
 
 SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                         depth=100, durability=DurabilityPolicy.VOLATILE)
@@ -60,6 +63,15 @@ SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryP
 
 class DeviceLost(Exception):
     """The device stopped answering (no samples, failed handshake)."""
+
+
+class IncompatibleDevice(DeviceLost):
+    """The device answered the handshake but cannot be driven (another major protocol version,
+    an impossible sample rate): it is not streamed from and gets no COMMAND frame."""
+
+
+class InjectedError(RuntimeError):
+    """The internal error of the inject_internal_error parameter (tests of the exception path)."""
 
 
 class DriverNode(Node):
@@ -99,7 +111,10 @@ class DriverNode(Node):
         self._connects = 0
         self._disconnects = 0
         self._handshake_failures = 0
+        self._incompatible = ''              # why the device was refused at the handshake
+        self._refused_logged = -math.inf     # monotonic time of the last log line about it
         self._last_error = ''
+        self._inject_at = None               # monotonic time of the injected internal error
         self._device = None
         self._device_heartbeat = None
         self._samples = 0
@@ -148,13 +163,14 @@ class DriverNode(Node):
         self._tx_seq = (self._tx_seq + 1) & 0xFFFF
         return seq
 
-    def _send_output(self, u1: float, u2: float) -> None:
-        """Send (u1, u2) V to the valves and publish ~/applied_command if it changed."""
+    def _send_output(self, u1: float, u2: float) -> bool:
+        """Send (u1, u2) V to the valves and publish ~/applied_command if it changed; False if
+        no device was there to send it to (or the write failed)."""
         changed = (u1, u2) != self._output
         self._output = (u1, u2)
         with self._io_lock:
             seq = self._next_seq()
-        self._write(proto.command(seq, self.cal.dac_counts(u1), self.cal.dac_counts(u2)))
+        sent = self._write(proto.command(seq, self.cal.dac_counts(u1), self.cal.dac_counts(u2)))
         if changed:
             msg = ValveCommand()
             msg.header.stamp = self.get_clock().now().to_msg()
@@ -164,6 +180,7 @@ class DriverNode(Node):
                 self._pub_applied.publish(msg)
             except Exception:  # noqa: BLE001 - shutting down
                 pass
+        return sent
 
     def _go_safe(self, reason: str, override: bool = False) -> None:
         """safe_output now, disarmed (latched) until ~/arm. The reason reported is the first
@@ -199,6 +216,8 @@ class DriverNode(Node):
                 return
             self._last_command_time = time.monotonic()
             self._send_output(*clipped)
+            if self._inject_at is None and self.config['inject_internal_error'] > 0.0:
+                self._inject_at = self._last_command_time + self.config['inject_internal_error']
 
     def _on_arm(self, request, response):
         with self._lock:
@@ -236,11 +255,16 @@ class DriverNode(Node):
                 self._connect(serial)
                 backoff = first
                 self._stream()
+            except IncompatibleDevice as exc:
+                self._last_error = str(exc)
+                self._refuse_device(str(exc), backoff)
             except DeviceLost as exc:
                 self._last_error = str(exc)
+                self._incompatible = ''
                 self._warn_not_connected(backoff)
             except (serial.SerialException, OSError) as exc:
                 self._last_error = f'{type(exc).__name__}: {exc}'
+                self._incompatible = ''
                 self._warn_not_connected(backoff)
             except Exception as exc:  # noqa: BLE001 - never die: safe output, report, retry
                 with self._lock:
@@ -249,7 +273,10 @@ class DriverNode(Node):
                 self.get_logger().error(self._last_error)
                 self._go_safe(self._last_error)
             finally:
-                self._disconnect()
+                try:
+                    self._disconnect()
+                except Exception as exc:  # noqa: BLE001 - the thread must not die
+                    self._last_error = f'internal error: {type(exc).__name__}: {exc}'
             if self._stop.wait(backoff):
                 break
             backoff = min(2.0 * backoff, longest)
@@ -264,9 +291,39 @@ class DriverNode(Node):
             f'{backoff:g} s (up to every {self.config["reconnect_backoff"][1]:g} s), safe output '
             'meanwhile; /diagnostics reports ERROR until connected', throttle_duration_sec=10.0)
 
+    def _refuse_device(self, why: str, backoff: float) -> None:
+        """An incompatible device: an error on the console (at once when the reason is new,
+        then at most every 10 s), safe and disarmed; the node keeps retrying (the board may be
+        re-flashed or replaced). Nothing but HELLO was sent to it."""
+        now = time.monotonic()
+        say = why != self._incompatible or now - self._refused_logged >= REFUSED_LOG_PERIOD
+        with self._lock:
+            self._incompatible = why
+            self._armed = False
+            self._last_command_time = None
+            self._safe_reason = f'incompatible device: {why}'
+        text = (f"refusing the device on {self.config['port']}: {why}; not streaming, safe "
+                f'output, retrying in {backoff:g} s (up to every '
+                f'{self.config["reconnect_backoff"][1]:g} s)')
+        if say:
+            self._refused_logged = now
+            self.get_logger().error(text)
+
+    def _check_device(self, info: proto.DeviceInfo) -> None:
+        """Raise IncompatibleDevice unless the HELLO_ACK describes a device this driver drives."""
+        if info.major != proto.PROTOCOL_MAJOR:
+            raise IncompatibleDevice(
+                f'protocol version mismatch: the device speaks {info.major}.{info.minor}, this '
+                f'driver {proto.PROTOCOL_MAJOR}.{proto.PROTOCOL_MINOR} (major versions must be '
+                'equal)')
+        if info.rate == 0:
+            raise IncompatibleDevice('the device reports a sample rate of 0 Hz')
+
     def _connect(self, serial) -> None:
+        # exclusive: an advisory lock (flock) on the port, so that a second driver_node (or any
+        # other pyserial program asking for one) cannot share the board and steal its bytes
         ser = serial.Serial(self.config['port'], self.config['baud'], timeout=0.002,
-                            write_timeout=0.1)
+                            write_timeout=0.1, exclusive=True)
         ser.reset_input_buffer()
         with self._io_lock:
             self._serial = ser
@@ -285,17 +342,19 @@ class DriverNode(Node):
             with self._lock:
                 self._handshake_failures += 1
             raise DeviceLost('no HELLO_ACK within handshake_timeout')
-        if info.major != proto.PROTOCOL_MAJOR:
+        try:
+            self._check_device(info)
+        except IncompatibleDevice:
             with self._lock:
                 self._handshake_failures += 1
-            raise DeviceLost(f'device speaks protocol {info.major}.{info.minor}, driver '
-                             f'{proto.PROTOCOL_MAJOR}.{proto.PROTOCOL_MINOR}')
+            raise
         if info.adc_bits != self.cal.adc_bits or info.dac_bits != self.cal.dac_bits:
             self.get_logger().warning(
                 f'device reports {info.adc_bits}-bit ADC / {info.dac_bits}-bit DAC, calibration '
                 f'says {self.cal.adc_bits} / {self.cal.dac_bits}', throttle_duration_sec=10.0)
         with self._lock:
             self._device = info
+            self._incompatible = ''
             self._connected = True
             self._connects += 1
             # whatever the valves had before: start from the safe output
@@ -330,6 +389,9 @@ class DriverNode(Node):
         while not self._stop.is_set():
             data = ser.read(max(ser.in_waiting, 1))
             now = time.monotonic()
+            if self._inject_at is not None and now >= self._inject_at:
+                self._inject_at = math.inf   # once
+                raise InjectedError('injected by the inject_internal_error parameter')
             if data:
                 for frame in self._decoder.feed(data):
                     self._rx_seq.update(frame.seq)
@@ -424,16 +486,24 @@ class DriverNode(Node):
 
     # ------------------------------------------------------------------ shutdown
     def stop(self) -> None:
-        """Safe output to the device, stop the reader thread, close the port."""
+        """Safe output to the device, stop the reader thread, close the port (the reader thread
+        closes it on its way out: after the safe COMMAND frame was written)."""
+        sent = False
         try:
             with self._lock:
                 self._armed = False
                 self._safe_reason = 'shutdown'
-                self._send_output(*self.config['safe_output'])
-        except Exception:  # noqa: BLE001
+                sent = self._send_output(*self.config['safe_output'])
+        except Exception:  # noqa: BLE001 - shutting down: do what can be done
             pass
         self._stop.set()
         self._thread.join(timeout=2.0)
+        try:
+            self.get_logger().info(
+                f'shutdown: safe output {list(self.config["safe_output"])} V '
+                + ('sent to the device, port closed' if sent else '(no device connected)'))
+        except Exception:  # noqa: BLE001
+            pass
 
     # ------------------------------------------------------------------ diagnostics
     def _report(self):
@@ -453,6 +523,7 @@ class DriverNode(Node):
                 'reconnects': max(self._connects - 1, 0),
                 'disconnects': self._disconnects,
                 'handshake failures': self._handshake_failures,
+                'device refused': self._incompatible or 'none',
                 'crc errors': d.crc_errors,
                 'garbage bytes': d.garbage_bytes,
                 'lost frames': self._rx_seq.lost,
@@ -486,7 +557,10 @@ class DriverNode(Node):
         self._reported = {k: values[k] for k in counters}
         problems = []
         level = OK
-        if not connected:
+        if not connected and values['device refused'] != 'none':
+            level = ERROR
+            problems.append(f'device refused: {values["device refused"]}')
+        elif not connected:
             level = ERROR
             problems.append(f'device not connected ({self._last_error or "connecting"})')
         if fault:

@@ -10,9 +10,16 @@ It prints the slave device path ("device: /dev/pts/N") and, with --link, keeps a
 current slave at a fixed path: after an emulated unplug/replug the pty is new (a new /dev/pts/N)
 and the link is moved to it, as udev would for a USB device.
 
-Device-side behaviour: the sample stream starts after a HELLO; the device vents both valves
-(0 V) when no host frame arrived for --device-watchdog s, and stops streaming after 1 s of
-silence (a new HELLO restarts it).
+Device-side behaviour: the sample stream starts after a HELLO of the device's major protocol
+version (--protocol-version announces another one: a HELLO of this driver's version is then
+answered but no sample is streamed); the device vents both valves (0 V) when no host frame arrived
+for --device-watchdog s, and stops streaming after 1 s of silence (a new HELLO restarts it).
+
+What the device saw, for tests and for the curious: --status-file PATH is rewritten (atomically,
+JSON) ten times a second and at exit: the host sessions (one per accepted HELLO) with the number
+of COMMAND frames and the first and last command (V) of each, the HELLOs refused for their
+version, the device watchdog trips, the samples sent and the faults injected. The exit line on
+stdout says the last command too.
 
 Faults (times in s after the first handshake): --garbage-every (random bytes between frames),
 --corrupt-every (one byte of a sample frame flipped: CRC error), --drop-every (a sample frame not
@@ -23,6 +30,7 @@ removed; then a new pty), --stuck-sensor p1|p2 --stuck-at (that ADC channel froz
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import random
 import signal
@@ -65,6 +73,16 @@ def build_parser() -> argparse.ArgumentParser:
                         help='vent both valves after this long without host frames (default 0.25)')
     parser.add_argument('--duration', type=float, default=0.0, metavar='S',
                         help='exit after this long (default 0: run until SIGINT/SIGTERM)')
+    parser.add_argument('--protocol-version', type=protocol_version,
+                        default=(proto.PROTOCOL_MAJOR, proto.PROTOCOL_MINOR),
+                        metavar='MAJOR.MINOR',
+                        help='protocol version the device announces in HELLO_ACK (default '
+                             f'{proto.PROTOCOL_MAJOR}.{proto.PROTOCOL_MINOR}); it streams only to '
+                             'a HELLO of the same major version')
+    parser.add_argument('--status-file', metavar='PATH',
+                        help='keep a JSON summary of what the device received (host sessions, '
+                             'commands, refused HELLOs, watchdog trips) at PATH, rewritten 10 '
+                             'times a second and at exit')
     add_model_arguments(parser)
     faults = parser.add_argument_group('fault injection (times from the first handshake, s)')
     faults.add_argument('--garbage-every', type=float, default=0.0, metavar='S',
@@ -82,6 +100,17 @@ def build_parser() -> argparse.ArgumentParser:
     faults.add_argument('--stuck-at', type=float, default=1.0, metavar='S',
                         help='when the stuck sensor freezes (default 1.0)')
     return parser
+
+
+def protocol_version(text: str) -> tuple[int, int]:
+    """'MAJOR.MINOR' -> (major, minor), each 0-255 (an argparse type)."""
+    try:
+        major, minor = (int(v) for v in text.split('.'))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected MAJOR.MINOR, got {text!r}') from None
+    if not (0 <= major <= 255 and 0 <= minor <= 255):
+        raise argparse.ArgumentTypeError(f'versions are bytes (0-255), got {text!r}')
+    return major, minor
 
 
 class Port:
@@ -170,8 +199,9 @@ class Emulator:
         self.rng = random.Random(args.seed)
         flags = (0 if args.no_encoder else proto.FLAG_ENCODER) | (
             0 if args.no_torque else proto.FLAG_TORQUE)
-        self.info = proto.DeviceInfo(proto.PROTOCOL_MAJOR, proto.PROTOCOL_MINOR, args.rate,
-                                     self.cal.adc_bits, self.cal.dac_bits, flags)
+        major, minor = args.protocol_version
+        self.info = proto.DeviceInfo(major, minor, args.rate, self.cal.adc_bits,
+                                     self.cal.dac_bits, flags)
         self.decoder = proto.Decoder()
         self.seq = 0
         self.tick = 0
@@ -188,6 +218,10 @@ class Emulator:
         self.port = None
         self.disconnected_until = None
         self.disconnect_done = False
+        self.samples_sent = 0
+        self.sessions = []                # per accepted HELLO: commands, first, last (V)
+        self.refused = {}                 # host version of the HELLOs refused -> how many
+        self.next_status = 0.0
 
     def _next_seq(self) -> int:
         seq = self.seq
@@ -213,15 +247,30 @@ class Emulator:
             self.last_host = now
             if frame.type == proto.HELLO:
                 self.port.write(proto.hello_ack(self._next_seq(), self.info))
-                if fields[0] == proto.PROTOCOL_MAJOR:
+                if fields[0] == self.info.major:
                     self.streaming = True
+                    self.sessions.append({'commands': 0, 'first': None, 'last': None})
                     if self.t0 is None:
                         self.t0 = now
                         print('pam-emulator: host connected', flush=True)
+                else:
+                    self.streaming = False
+                    if not self.refused:
+                        print(f'pam-emulator: host speaks protocol {fields[0]}.{fields[1]}, the '
+                              f'device {self.info.major}.{self.info.minor}: not streaming',
+                              flush=True)
+                    version = f'{fields[0]}.{fields[1]}'
+                    self.refused[version] = self.refused.get(version, 0) + 1
             elif frame.type == proto.COMMAND:
                 u1, u2 = (self.cal.valve_volts(c) for c in fields)
                 self.rig.set_command(u1, u2)
                 self.watchdog_tripped = False
+                if self.sessions:
+                    session = self.sessions[-1]
+                    session['commands'] += 1
+                    session['last'] = [u1, u2]
+                    if session['first'] is None:
+                        session['first'] = [u1, u2]
             elif frame.type == proto.HEARTBEAT:
                 pass
 
@@ -296,6 +345,26 @@ class Emulator:
                                             self.decoder.crc_errors, self.watchdog_trips,
                                             1 if self.watchdog_tripped else 0)
         self.port.write(frame)
+        self.samples_sent += 1
+
+    # ---- what the device saw -----------------------------------------------------------------
+    def status(self) -> dict:
+        last = next((x['last'] for x in reversed(self.sessions) if x['last'] is not None), None)
+        return {'protocol': f'{self.info.major}.{self.info.minor}', 'streaming': self.streaming,
+                'sessions': self.sessions, 'last_command': last,
+                'refused_hellos': self.refused,
+                'host_frames': self.rx_frames, 'device_watchdog_trips': self.watchdog_trips,
+                'samples_sent': self.samples_sent, 'faults': self.counts}
+
+    def write_status(self, now: float, force: bool = False) -> None:
+        path = self.args.status_file
+        if not path or (now < self.next_status and not force):
+            return
+        self.next_status = now + 0.1
+        tmp = f'{path}.tmp{os.getpid()}'
+        with open(tmp, 'w') as f:
+            json.dump(self.status(), f)
+        os.replace(tmp, path)
 
     def run(self) -> int:
         stop = []
@@ -315,11 +384,17 @@ class Emulator:
                 if end is not None and now >= end:
                     break
                 self.step(now)
+                self.write_status(now)
                 schedule.advance(now)
         finally:
             if self.port is not None:
                 self.port.close()
-            print(f'pam-emulator: stopped; faults injected: {self.counts}', flush=True)
+            self.write_status(time.monotonic(), force=True)
+            last = self.status()['last_command']
+            # the wall-clock time, to set beside the driver's log (a driver stopped after the
+            # emulator logs 'device lost' then: the pty it had open closed under it)
+            print(f'pam-emulator: stopped at {time.time():.3f}; last command {last} V, host '
+                  f'sessions {len(self.sessions)}, faults injected: {self.counts}', flush=True)
         return 0
 
 

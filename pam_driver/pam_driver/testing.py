@@ -151,7 +151,8 @@ def ros_domain(request) -> int:
 def node_process(request, ros_domain, tmp_path):
     """Factory: node_process(name, package, *ros_args) starts `name --ros-args *ros_args` (or the
     exact argv given with raw=True) on this module's domain. Every process is stopped at
-    teardown (SIGINT, then SIGKILL), its output attached to the test report."""
+    teardown (SIGINT, then SIGKILL), last started first (a client before what it depends on,
+    e.g. driver_node before its emulator), its output attached to the test report."""
     started: list[NodeProcess] = []
 
     def start(name: str, package: str, *args, raw: bool = False) -> NodeProcess:
@@ -161,7 +162,7 @@ def node_process(request, ros_domain, tmp_path):
         return process
 
     yield start
-    for i, process in enumerate(started):
+    for i, process in reversed(list(enumerate(started))):
         code = process.stop()
         label = f'{process.name} #{i + 1}'
         request.node.add_report_section(

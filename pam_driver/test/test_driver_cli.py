@@ -16,12 +16,12 @@ def test_help_texts():
     out = _run('driver_node', '--help')
     assert out.returncode == 0
     for word in ('port', 'calibration_file', 'watchdog_timeout', 'safe_output', '~/arm',
-                 'reconnect_backoff'):
+                 'reconnect_backoff', 'inject_internal_error'):
         assert word in out.stdout
     out = _run('pam-emulator', '--help')
     assert out.returncode == 0
     for word in ('--link', '--locked', '--mismatch', '--garbage-every', '--disconnect-at',
-                 '--stuck-sensor', '--drop-every'):
+                 '--stuck-sensor', '--drop-every', '--protocol-version', '--status-file'):
         assert word in out.stdout
 
 
@@ -33,3 +33,10 @@ def test_bad_calibration_is_a_clean_error(tmp_path):
     assert "adc.vref_volts" in out.stderr and str(bad) in out.stderr
     out = _run('pam-emulator', '--calibration', str(bad))
     assert out.returncode == 2 and 'adc.vref_volts' in out.stderr, out.stderr
+
+
+def test_emulator_rejects_a_bad_protocol_version():
+    out = _run('pam-emulator', '--protocol-version', '2')
+    assert out.returncode == 2 and 'expected MAJOR.MINOR' in out.stderr, out.stderr
+    out = _run('pam-emulator', '--protocol-version', '1.256')
+    assert out.returncode == 2 and 'versions are bytes' in out.stderr, out.stderr
