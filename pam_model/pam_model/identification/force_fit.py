@@ -20,7 +20,9 @@ from .fit_result import Estimate, GroupFit, NotIdentifiable, check_identified, s
 
 MIN_ANGLE_SPAN = math.radians(10.0)   # rad, lock angles must span this much
 MIN_PRESSURE_SPAN = 150.0e3           # Pa, each muscle's pressure must span this much
-ANGLE_GROUP = math.radians(2.0)       # rad, lock angles closer than this are one angle
+#: Smallest scale of each unknown (p_v1 m, p_v2 m^2, p_v1 m, p_v2 m^2, w0 N, a N/m): a prior of 0
+#: must not make its column vanish.
+TYPICAL_SCALE = np.array([1e-3, 1e-4, 1e-3, 1e-4, 1.0, 10.0])
 PARAMETERS = ('pam1.p_v1', 'pam1.p_v2', 'pam1.p_w1', 'pam1.p_w2',
               'pam2.p_v1', 'pam2.p_v2', 'pam2.p_w1', 'pam2.p_w2')
 
@@ -71,7 +73,7 @@ def fit_forces(records, prior) -> tuple[GroupFit, dict]:
     A = regressors(psi, P[:, 0], P[:, 1], prior)
     w0_prior, a_prior = intercept_combinations(prior)
     theta0 = np.array([prior.p_v1_1, prior.p_v2_1, prior.p_v1_2, prior.p_v2_2, w0_prior, a_prior])
-    scale = np.abs(theta0) + 1e-12
+    scale = np.maximum(np.abs(theta0), TYPICAL_SCALE)
     As = A * scale
     sol = least_squares(lambda z: As @ z - tau, theta0 / scale, jac=lambda z: As, method='lm')
     theta = sol.x * scale

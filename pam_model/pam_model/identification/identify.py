@@ -11,11 +11,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..parameters import ParameterError, Parameters, validate_parameters
 from ..valve_map import ValveMap
-from .fit_result import GroupFit, NotIdentifiable
+from .fit_result import NotIdentifiable
 from .flow_fit import fit_flow
 from .force_fit import fit_forces, intercept_combinations
 from .friction_fit import PARAMETERS as FRICTION_PARAMETERS, fit_friction
@@ -145,8 +143,3 @@ def format_report(ident: Identification, prior: Parameters, truth: Parameters | 
         lines += ['', 'NOT identified (prior values kept):', describe_missing(ident.missing)]
     return '\n'.join(lines).lstrip('\n')
 
-
-def relative_errors(params: Parameters, truth: Parameters, fields) -> dict:
-    """field: relative error of params against truth."""
-    return {f: float((getattr(params, f) - getattr(truth, f)) / getattr(truth, f)) for f in fields
-            if getattr(truth, f) != 0.0 and np.isfinite(getattr(params, f))}

@@ -19,6 +19,7 @@ from .fit_result import Estimate, GroupFit, NotIdentifiable
 MIN_HOLD = 2.0            # s, shortest stretch of constant voltage that counts as a hold
 MAX_GAP = 15.0e3          # Pa, largest remaining approach of a settled hold
 MAX_STEADY_STD = 1.5e3    # Pa, largest 1-sigma uncertainty of a settled P_bar
+MIN_STEADY_STD = 10.0     # Pa, floor of that uncertainty (a noise-free, constant pressure)
 TIME_CONSTANTS = np.geomspace(0.1, 20.0, 48)   # s, grid of the exponential approach
 VOLTAGE_DECIMALS = 3      # voltages equal to 1 mV are one hold voltage
 PARAMETER = 'kappa'
@@ -64,7 +65,8 @@ def static_map(records):
             for a, b in hold_segments(rec.u[:, i], rec.t):
                 P_bar, std, gap = steady_state(rec.t[a:b], rec.P[a:b, i])
                 if abs(gap) <= MAX_GAP and std <= MAX_STEADY_STD:
-                    rows.append((round(float(rec.u[a, i]), VOLTAGE_DECIMALS), P_bar, std))
+                    rows.append((round(float(rec.u[a, i]), VOLTAGE_DECIMALS), P_bar,
+                                 max(std, MIN_STEADY_STD)))
                 else:
                     rejected += 1
     return rows, rejected
