@@ -3,9 +3,10 @@
 The plant is the 'mild' mismatch of the nominal set (known true values); the campaign is a short
 version of the default one (8 hold voltages, lock angles -15 and +15 deg, 30 s free run), with the
 plant's sensor noise. Tolerances: kappa and the force terms are fitted from many samples and land
-within a fraction of a percent (tolerances 0.5-1 %); the effective valve areas and k2 within 2-3 %;
-mu_s within 8 %; mu_p only within 40 %: inside the 200-700 kPa envelope the tube friction is a
-small part of T_c (it grows as 1/(P - P_out)^2), so the angle barely depends on it.
+within a fraction of a percent (tolerances 0.5-1 %); the effective valve areas and k2 within 2-3 %
+(seen: k2 within 1.2 % over seeds 3-5); mu_s within 3 % (seen 0.9 %); mu_p within 15 % (seen
+8 %): inside the 200-700 kPa envelope the tube friction is a small part of T_c (it grows as
+1/(P - P_out)^2), so the 30 s free run here pins it less well than the default 60 s one.
 """
 
 import math
@@ -209,8 +210,8 @@ def test_valve_areas_and_k2_are_recovered(identified, plant):
 
 def test_friction_is_recovered(identified, plant):
     _, truth, _ = plant
-    assert rel(identified.params.mu_s, truth.mu_s) < 0.08
-    assert rel(identified.params.mu_p, truth.mu_p) < 0.40
+    assert rel(identified.params.mu_s, truth.mu_s) < 0.03
+    assert rel(identified.params.mu_p, truth.mu_p) < 0.15
 
 
 def test_report_lists_every_fit_with_uncertainty_and_truth(identified, plant):

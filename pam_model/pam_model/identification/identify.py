@@ -51,39 +51,33 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
     changes = {}
 
     def attempt(name, fit):
+        """Run one fit: what it returns after its GroupFit, or None when not identifiable."""
         log(f'fitting {name} ...')
         try:
-            return fit()
+            group, *rest = fit()
         except NotIdentifiable as gap:
             missing.append(gap)
             log(f'  {name}: not identified: {gap.what}')
             return None
+        fits.append(group)
+        return rest
 
-    result = attempt('valve map kappa(u)', lambda: fit_valve_map(records, prior, prior_map))
-    valve_map = prior_map
-    if result:
-        fits.append(result[0])
-        valve_map = result[1]
-    result = attempt('force coefficients', lambda: fit_forces(records, prior))
-    forces_known = result is not None
-    if result:
-        fits.append(result[0])
-        changes.update(result[1])
-    result = attempt('valve areas and k2', lambda: fit_flow(records, prior, valve_map))
-    if result:
-        fits.append(result[0])
-        changes.update(result[1])
-        missing.extend(result[2])
-    if forces_known:
-        result = attempt('friction', lambda: fit_friction(records, prior.replace(**changes)))
+    forces = attempt('force coefficients', lambda: fit_forces(records, prior))
+    if forces:
+        changes.update(forces[0])
+        friction = attempt('friction', lambda: fit_friction(records, prior.replace(**changes)))
+        if friction:
+            changes.update(friction[0])
     else:
-        result = None
         missing.append(NotIdentifiable('mu_s and mu_p need the force coefficients identified '
                                        'first (the friction fit compares angles the forces set)',
                                        FRICTION_PARAMETERS))
-    if result:
-        fits.append(result[0])
-        changes.update(result[1])
+    kappa = attempt('valve map kappa(u)', lambda: fit_valve_map(records, prior, prior_map))
+    valve_map = kappa[0] if kappa else prior_map
+    flow = attempt('valve areas and k2', lambda: fit_flow(records, prior, valve_map))
+    if flow:
+        changes.update(flow[0])
+        missing.extend(flow[1])
     if missing and not partial:
         raise IdentificationError('the calibration runs cannot identify everything:\n'
                                   + describe_missing(missing)
