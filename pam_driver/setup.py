@@ -29,6 +29,7 @@ setup(
             'bag_record = pam_driver.bag_record:main',
             'bag_play = pam_driver.bag_play:main',
             'pam-bag-info = pam_driver.bag_info:main',
+            'pam-bag-recover = pam_driver.bag_recover:main',
         ],
     },
 )

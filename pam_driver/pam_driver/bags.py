@@ -8,7 +8,8 @@ in that record, as rosbag2 Jazzy writes. Writing goes through rosbags' Writer wi
 writer that also writes topic_type_hash, closes a chunk at least every `chunk_interval` seconds
 and writes it to disk at once (unbuffered), so that a crash loses at most the last chunk, and a
 write error leaves the file truncated to its last complete chunk and closed with a valid summary
-(a readable bag of what was written).
+(a readable bag of what was written). recover_bag() turns the directory a crashed recorder left
+(every complete chunk, no summary, no metadata.yaml) into a complete bag again.
 
 Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, registered from their
 .msg files (their RIHS01 hashes equal rosidl's).
@@ -16,8 +17,11 @@ Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, regis
 
 from __future__ import annotations
 
+import collections
 import os
 import re
+import shutil
+import struct
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -259,7 +263,7 @@ class BagWriter:
             self._writer.open()
         except Exception as exc:  # noqa: BLE001
             raise BagError(f'{self.path}: cannot create the bag: {exc}') from exc
-        self._writer.set_custom_data('recorder', 'pam_driver bag_record')
+        self.set_custom_data('recorder', 'pam_driver bag_record')
         self.closed = False
         self.error: BaseException | None = None
 
@@ -273,6 +277,10 @@ class BagWriter:
         conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
                                            offered_qos_profiles=list(qos_profiles))
         self.topics[topic] = _Topic(topic, msgtype, conn)
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """A custom_data entry of metadata.yaml."""
+        self._writer.set_custom_data(key, value)
 
     def write(self, topic: str, t_ns: int, data: bytes) -> None:
         entry = self.topics[topic]
@@ -327,7 +335,7 @@ def check_bag(path) -> Path:
     meta = path / METADATA
     if not meta.is_file():
         raise BagError(f'{meta}: missing (not a rosbag2 bag directory, or the recorder was '
-                       'killed before closing it)')
+                       f'killed before closing it: `pam-bag-recover {path}` repairs that)')
     try:
         from ruamel.yaml import YAML
         info = YAML(typ='safe').load(meta.read_text())['rosbag2_bagfile_information']
@@ -356,7 +364,7 @@ def check_mcap(path) -> None:
         raise BagError(f'{path}: not an MCAP file (bad magic)')
     if size < 16 + 29 or tail != MCAP_MAGIC:
         raise BagError(f'{path}: truncated or corrupt MCAP file (no footer: the recording was '
-                       'cut short or the file was damaged)')
+                       'cut short or the file was damaged; pam-bag-recover keeps what is readable)')
     try:
         from mcap.reader import make_reader
         with path.open('rb') as f:
@@ -485,3 +493,206 @@ def format_info(info: dict) -> str:
                      f"Rate: {t['rate']:.1f} Hz | Serialization Format: "
                      f"{t['serialization_format']}")
     return '\n'.join(lines) + '\n'
+
+
+# ------------------------------------------------------------------------------- recovery
+DAMAGED = '.damaged'            # suffix of the original files recover_bag() keeps
+RECOVER_TMP = '.pam-bag-recover.tmp'
+_RECORD_HEAD = struct.Struct('<BQ')   # MCAP record: opcode, body length
+
+
+@dataclass
+class Recovery:
+    """What recover_bag() made of a crashed bag."""
+
+    path: Path                  # the bag directory, now a complete bag
+    damaged: list               # the original files, renamed to <name>.damaged
+    size: int                   # bytes of the damaged .mcap
+    dropped_bytes: int = 0      # of them not recovered: a cut-off tail, unreadable records
+    counts: dict = field(default_factory=dict)     # topic -> messages recovered
+    start_ns: int = 0           # first and last message (receive) time
+    end_ns: int = 0
+    problems: list = field(default_factory=list)   # what was dropped, where and why
+
+
+def first_problems(problems: list, limit: int = 3) -> list:
+    """The first `limit` problems, then how many more there are."""
+    more = len(problems) - limit
+    return problems[:limit] + ([f'... and {more} more'] if more > 0 else [])
+
+
+def _records(stream, size: int):
+    """(offset, opcode, body) of each complete MCAP record from the stream's position on; stops
+    before a record that is cut off (extends past `size`) or whose opcode is invalid."""
+    pos = stream.tell()
+    while pos + _RECORD_HEAD.size <= size:
+        opcode, length = _RECORD_HEAD.unpack(stream.read(_RECORD_HEAD.size))
+        if not (0 < opcode < 0x10 or opcode >= 0x80) or pos + _RECORD_HEAD.size + length > size:
+            return
+        yield pos, opcode, stream.read(length)
+        pos += _RECORD_HEAD.size + length
+
+
+def _parse_records(opcode: int, body: bytes) -> tuple[str, list]:
+    """(chunk compression or None, the schema/channel/message records) of one record; a chunk
+    is decompressed (its CRC checked when it has one) and must hold complete records only."""
+    from io import BytesIO
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.opcode import Opcode
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import get_chunk_data_stream
+
+    def stream(data):
+        return ReadDataStream(BytesIO(data))
+    if opcode != Opcode.CHUNK:
+        readers = {Opcode.SCHEMA: Schema.read, Opcode.CHANNEL: Channel.read,
+                   Opcode.MESSAGE: lambda s: Message.read(s, len(body))}
+        return None, [readers[opcode](stream(body))] if opcode in readers else []
+    chunk = Chunk.read(stream(body))
+    data_stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    if size != chunk.uncompressed_size:
+        raise ValueError(f'{size} bytes uncompressed, the chunk says {chunk.uncompressed_size}')
+    data = data_stream.read(size)
+    inner = list(_records(BytesIO(data), size))
+    end = inner[-1][0] + _RECORD_HEAD.size + len(inner[-1][2]) if inner else 0
+    if end != size:
+        raise ValueError(f'invalid record at byte {end} of the uncompressed chunk')
+    return chunk.compression, [r for _, op, b in inner for r in _parse_records(op, b)[1]]
+
+
+def _find_damaged(path) -> tuple[Path, Path]:
+    """The bag directory and its one .mcap file, if it needs recovery; BagError otherwise."""
+    path = Path(path)
+    if path.is_file() and path.suffix == '.mcap':
+        path = path.parent
+    if not path.is_dir():
+        raise BagError(f'{path}: no such bag directory')
+    mcaps = sorted(path.glob('*.mcap'))
+    if len(mcaps) != 1:
+        raise BagError(f'{path}: {len(mcaps) or "no"} .mcap files (recovery handles a directory '
+                       'with one, as bag_record writes)')
+    if (path / METADATA).exists():
+        try:
+            check_bag(path)
+        except BagError:
+            pass
+        else:
+            raise BagError(f'{path}: a complete bag (metadata.yaml and a readable .mcap with its '
+                           'summary): it needs no recovery')
+    for original in (mcaps[0], path / METADATA):
+        kept = original.with_name(original.name + DAMAGED)
+        if kept.exists():
+            raise BagError(f'{kept}: already exists (left by an earlier recovery?); move it '
+                           'away first')
+    return path, mcaps[0]
+
+
+def _rewrite(source: Path, out: Path) -> Recovery:
+    """Every message of the complete records of `source` (a crashed .mcap) into a new bag at
+    `out`, through BagWriter (summary, indexes, metadata.yaml, the rosbag2 record)."""
+    from mcap.opcode import Opcode
+    from mcap.records import Channel, Message, Schema
+    from rosbags.rosbag2.metadata import parse_qos
+    from rosbags.typesys import get_types_from_msg
+
+    size = source.stat().st_size
+    result = Recovery(path=out, damaged=[], size=size)
+    writer, compression = None, 'zstd'
+    schemas, topics, lost = {}, {}, collections.Counter()   # lost: channel id -> messages
+    try:
+        with source.open('rb') as f:
+            if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+                raise BagError(f'{source}: not an MCAP file (bad magic)')
+            end = len(MCAP_MAGIC)
+            for offset, opcode, body in _records(f, size):
+                end = offset + _RECORD_HEAD.size + len(body)
+                if opcode in (Opcode.FOOTER, Opcode.DATA_END):   # the summary follows
+                    end = size
+                    break
+                try:
+                    kind, records = _parse_records(opcode, body)
+                except Exception as exc:  # noqa: BLE001 - any damage: drop this record
+                    result.dropped_bytes += end - offset
+                    result.problems.append(f'offset {offset}: unreadable record (opcode '
+                                           f'{opcode:#04x}, {end - offset} bytes): {exc}')
+                    continue
+                if kind is not None:
+                    compression = 'zstd' if kind else 'none'
+                for record in records:
+                    if isinstance(record, Schema):
+                        schemas[record.id] = record
+                    elif isinstance(record, Channel) and record.schema_id in schemas:
+                        schema = schemas[record.schema_id]
+                        writer = writer or BagWriter(out, compression=compression)
+                        try:
+                            if not known_type(writer.typestore, schema.name):
+                                writer.typestore.register(get_types_from_msg(
+                                    schema.data.decode(), schema.name))
+                            if record.topic not in writer.topics:
+                                writer.add_topic(record.topic, schema.name, parse_qos(
+                                    record.metadata.get('offered_qos_profiles', '')))
+                            topics[record.id] = record.topic
+                        except Exception as exc:  # noqa: BLE001 - its messages count as lost
+                            result.problems.append(f'topic {record.topic}: {exc}')
+                    elif isinstance(record, Message) and record.channel_id not in topics:
+                        lost[record.channel_id] += 1
+                    elif isinstance(record, Message):
+                        writer.write(topics[record.channel_id], record.log_time, record.data)
+                        result.start_ns = min(result.start_ns or record.log_time,
+                                              record.log_time)
+                        result.end_ns = max(result.end_ns, record.log_time)
+        if end < size:
+            result.dropped_bytes += size - end
+            result.problems.append(f'offset {end}: the last {size - end} bytes are not a '
+                                   'complete record (cut off by the crash)')
+        if lost:
+            result.problems.append(f'{sum(lost.values())} messages on channel(s) '
+                                   f'{", ".join(map(str, sorted(lost)))} dropped: no usable '
+                                   'channel record')
+    finally:
+        if writer is not None:
+            writer.set_custom_data('recovered_by', 'pam-bag-recover')
+            writer.close()
+    result.counts = {t: n for t, n in (writer.counts() if writer else {}).items() if n}
+    if not result.counts:
+        raise BagError(f'{source}: no complete message to recover '
+                       f'({"; ".join([f"{size} bytes", *first_problems(result.problems)])})')
+    return result
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def recover_bag(path) -> Recovery:
+    """Make the bag directory a crashed recorder left (an .mcap without summary, no
+    metadata.yaml) a complete bag: every message of its complete records is rewritten into a new
+    `<dir>.mcap` + metadata.yaml; the original .mcap (and a metadata.yaml that did not open) are
+    kept beside it as `<name>.damaged`. BagError (nothing changed) if the directory needs no
+    recovery or holds no complete message."""
+    bag, source = _find_damaged(path)
+    tmp = bag / RECOVER_TMP
+    shutil.rmtree(tmp, ignore_errors=True)     # left by an interrupted recovery
+    tmp.mkdir()
+    try:
+        result = _rewrite(source, tmp / bag.name)
+        new_files = sorted((tmp / bag.name).iterdir(), key=lambda p: p.name == METADATA)
+        for new in new_files:
+            _fsync(new)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    for original in (source, bag / METADATA):   # the recovered data is on disk: swap
+        if original.exists():
+            result.damaged.append(original.rename(original.with_name(original.name + DAMAGED)))
+    for new in new_files:                         # metadata.yaml last: it marks the bag complete
+        new.rename(bag / new.name)
+    shutil.rmtree(tmp)
+    _fsync(bag)
+    result.path = bag
+    return result

@@ -1,4 +1,5 @@
-"""pam_driver.bags without ROS: type hashes, round trip, readers, bad input, write errors."""
+"""pam_driver.bags without ROS: type hashes, round trip, readers, bad input, write errors,
+recovery of a crashed recording (truncated at several offsets, damaged, garbage)."""
 
 import json
 
@@ -114,3 +115,147 @@ def test_write_error_leaves_a_readable_bag(store, tmp_path):
     assert 0 < len(contents.data) <= written
     info = bags.bag_info(tmp_path / 'b')
     assert info['message_count'] == len(contents.data)
+
+
+# ------------------------------------------------------------------------------- recovery
+@pytest.fixture(scope='module')
+def chunked(store, tmp_path_factory):
+    """A complete bag of 60 messages, one chunk each (chunk 0 also holds the schema and the
+    channel), and its chunk indexes."""
+    from mcap.reader import make_reader
+    path = tmp_path_factory.mktemp('chunked') / 'full'
+    write_bag(store, path, n=60, chunk_interval=0.0)
+    with open(path / 'full.mcap', 'rb') as f:
+        return path, make_reader(f).get_summary().chunk_indexes
+
+
+def crashed(full, path, cut=None, edit=None):
+    """A bag directory as a killed recorder leaves it: no metadata.yaml, the .mcap of the
+    complete bag `full` cut to its first `cut` bytes, after edit(bytearray) if given."""
+    data = bytearray((full / f'{full.name}.mcap').read_bytes()[:cut])
+    if edit:
+        edit(data)
+    path.mkdir()
+    (path / f'{path.name}.mcap').write_bytes(data)
+    return path
+
+
+def summary(mcap):
+    from mcap.reader import make_reader
+    with open(mcap, 'rb') as f:
+        return make_reader(f).get_summary()
+
+
+def check_recovered(store, path, indices, original: bytes, full):
+    """The bag at `path` is complete and holds the messages `indices` of write_bag in order,
+    on a channel like the original's (QoS, type hash); the damaged .mcap is kept unchanged
+    beside it."""
+    contents = bags.load_bag(path)
+    assert contents.data == [pressures(store, i) for i in indices]
+    assert contents.times == [10**18 + i * 10**6 for i in indices]
+    info = bags.bag_info(path)
+    assert info['message_count'] == len(indices) and info['ros_distro'] == 'jazzy'
+    assert info['version'] == 9 and info['compression'] == 'zstd'
+    assert bags.embedded_metadata(path / f'{path.name}.mcap')['message_count'] == len(indices)
+    assert (path / f'{path.name}.mcap.damaged').read_bytes() == original
+    got, reference = summary(path / f'{path.name}.mcap'), summary(full / 'full.mcap')
+    assert got.statistics.message_count == len(indices)
+    assert all(c.message_index_offsets for c in got.chunk_indexes)
+    assert ([(c.topic, c.metadata) for c in got.channels.values()] ==
+            [(c.topic, c.metadata) for c in reference.channels.values()])
+    assert sorted(p.name for p in path.iterdir()) == [
+        f'{path.name}.mcap', f'{path.name}.mcap.damaged', 'metadata.yaml']
+
+
+# where a crash cuts the file, relative to chunk 30 -> (cut, messages kept, bytes dropped)
+CUTS = {
+    'in the record head': lambda c: (c.chunk_start_offset + 5, 30, 5),
+    'mid chunk': lambda c: (c.chunk_start_offset + 100, 30, 100),
+    'mid message index': lambda c: (c.chunk_start_offset + c.chunk_length + 10, 31, 10),
+    'at a record boundary': lambda c: (
+        c.chunk_start_offset + c.chunk_length + c.message_index_length, 31, 0),
+}
+
+
+@pytest.mark.parametrize('where', sorted(CUTS))
+def test_recover_truncated(store, chunked, tmp_path, where):
+    """Every complete chunk is recovered; the cut-off record is dropped (and counted)."""
+    full, chunks = chunked
+    cut, n, dropped = CUTS[where](chunks[30])
+    path = crashed(full, tmp_path / 'b', cut)
+    with pytest.raises(bags.BagError, match='metadata.yaml: missing'):
+        bags.load_bag(path)
+    result = bags.recover_bag(path)
+    assert result.counts == {'/pam/pressures': n} and result.dropped_bytes == dropped
+    assert (result.start_ns, result.end_ns) == (10**18, 10**18 + (n - 1) * 10**6)
+    assert len(result.problems) == (dropped > 0)
+    check_recovered(store, path, range(n), (full / 'full.mcap').read_bytes()[:cut], full)
+
+
+def test_recover_a_complete_mcap_without_metadata(store, chunked, tmp_path):
+    """Cut inside the summary (or metadata.yaml lost): every message, nothing dropped."""
+    full, _ = chunked
+    size = (full / 'full.mcap').stat().st_size
+    path = crashed(full, tmp_path / 'b', size - 10)
+    result = bags.recover_bag(path)
+    assert result.counts == {'/pam/pressures': 60} and result.dropped_bytes == 0
+    check_recovered(store, path, range(60), (full / 'full.mcap').read_bytes()[:-10], full)
+
+
+def test_recover_skips_an_unreadable_chunk(store, chunked, tmp_path):
+    """A damaged chunk in the middle (here: a wrong uncompressed size) is dropped and named;
+    the chunks after it are kept."""
+    full, chunks = chunked
+    bad, last = chunks[10], chunks[40]
+    cut = last.chunk_start_offset + last.chunk_length + last.message_index_length
+
+    def damage(data):
+        data[bad.chunk_start_offset + 9 + 16] ^= 0xFF    # its uncompressed_size field
+    path = crashed(full, tmp_path / 'b', cut, damage)
+    original = (path / 'b.mcap').read_bytes()
+    result = bags.recover_bag(path)
+    assert result.dropped_bytes == bad.chunk_length
+    assert result.problems[0].startswith(f'offset {bad.chunk_start_offset}: unreadable record')
+    check_recovered(store, path, [i for i in range(41) if i != 10], original, full)
+
+
+def test_recover_keeps_no_compression(store, tmp_path):
+    from mcap.reader import make_reader
+    write_bag(store, tmp_path / 'full', n=20, compression='none', chunk_interval=0.0)
+    with open(tmp_path / 'full' / 'full.mcap', 'rb') as f:
+        cut = make_reader(f).get_summary().chunk_indexes[10].chunk_start_offset + 10
+    path = crashed(tmp_path / 'full', tmp_path / 'b', cut)
+    assert bags.recover_bag(path).counts == {'/pam/pressures': 10}
+    with open(path / 'b.mcap', 'rb') as f:
+        assert {c.compression for c in make_reader(f).get_summary().chunk_indexes} == {''}
+
+
+def test_recover_refuses_what_it_cannot_or_need_not_repair(store, chunked, tmp_path):
+    """One clear error, nothing changed: a complete bag, garbage, no complete message, a
+    missing directory, a .damaged file in the way."""
+    full, chunks = chunked
+    write_bag(store, tmp_path / 'ok', n=10)
+    with pytest.raises(bags.BagError, match='ok: a complete bag .* needs no recovery'):
+        bags.recover_bag(tmp_path / 'ok')
+    garbage = tmp_path / 'garbage'
+    garbage.mkdir()
+    (garbage / 'garbage.mcap').write_bytes(bytes(range(256)) * 40)
+    empty = crashed(full, tmp_path / 'empty', 0)
+    header_only = crashed(full, tmp_path / 'header', chunks[0].chunk_start_offset + 3)
+    no_channel = crashed(full, tmp_path / 'nochannel', chunks[5].chunk_start_offset,
+                         lambda data: data.__setitem__(chunks[0].chunk_start_offset + 25, 0))
+    junk = crashed(full, tmp_path / 'junk', chunks[0].chunk_start_offset,
+                   lambda data: data.extend(b'\x00' * 4096))    # zeros after a power loss
+    for path, error in ((garbage, r'garbage\.mcap: not an MCAP file \(bad magic\)'),
+                        (empty, r'empty\.mcap: not an MCAP file'),
+                        (header_only, r'header\.mcap: no complete message to recover'),
+                        (no_channel, 'unreadable record .*; 4 messages on channel.s. 1 dropped'),
+                        (junk, 'the last 4096 bytes are not a complete record'),
+                        (tmp_path / 'nope', 'nope: no such bag directory')):
+        before = sorted(tmp_path.rglob('*'))
+        with pytest.raises(bags.BagError, match=error):
+            bags.recover_bag(path)
+        assert sorted(tmp_path.rglob('*')) == before, 'a refused recovery changed files'
+    header_only.joinpath('header.mcap.damaged').write_bytes(b'')
+    with pytest.raises(bags.BagError, match=r'header\.mcap\.damaged: already exists'):
+        bags.recover_bag(header_only)
