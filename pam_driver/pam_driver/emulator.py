@@ -62,6 +62,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--x0', type=float, nargs=4, default=[0.0, 0.0, 450e3, 450e3],
                         metavar=('PSI', 'PSI_DOT', 'P1', 'P2'),
                         help='initial state in rad, rad/s, Pa, Pa (default: 0 0 450e3 450e3)')
+    parser.add_argument('--initial-command', type=float, nargs=2, default=[0.0, 0.0],
+                        metavar=('U1', 'U2'),
+                        help='valve voltages before the first COMMAND frame, in [0, 10] V '
+                             '(default: 0 0, a board powering up with both muscles vented; 5.5 '
+                             "5.5 starts at rest like sim_node's default initial_command)")
     parser.add_argument('--noise-std', type=float, default=500.0, metavar='PA',
                         help='pressure sensor noise std in Pa before the ADC (default 500)')
     parser.add_argument('--seed', type=int, default=0, help='noise and fault seed (default 0)')
@@ -195,7 +200,10 @@ class Emulator:
                              h=1.0 / args.rate)
         sensor = PressureSensor(noise_std=max(args.noise_std, 0.0), bits=0,
                                 range_min=0.0, range_max=2e6)
-        self.rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed, u0=(0.0, 0.0))
+        u0 = tuple(args.initial_command)
+        if not all(0.0 <= u <= 10.0 for u in u0):
+            raise ValueError(f'--initial-command must be within [0, 10] V, got {list(u0)}')
+        self.rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed, u0=u0)
         self.rng = random.Random(args.seed)
         flags = (0 if args.no_encoder else proto.FLAG_ENCODER) | (
             0 if args.no_torque else proto.FLAG_TORQUE)

@@ -40,3 +40,9 @@ def test_emulator_rejects_a_bad_protocol_version():
     assert out.returncode == 2 and 'expected MAJOR.MINOR' in out.stderr, out.stderr
     out = _run('pam-emulator', '--protocol-version', '1.256')
     assert out.returncode == 2 and 'versions are bytes' in out.stderr, out.stderr
+
+
+def test_emulator_rejects_an_initial_command_out_of_range():
+    out = _run('pam-emulator', '--initial-command', '5.5', '10.5')
+    assert out.returncode == 2 and '--initial-command must be within [0, 10] V' in out.stderr, \
+        out.stderr
