@@ -21,18 +21,11 @@ CLOSED_DURATION="${PAM_BAG_CLOSED_DURATION:-12.0}"   # s of steps (with the esti
 TOPICS=/pam/pressures,/pam/valve_command,/pam/joint_measured   # what pam-evaluate needs
 MODES=("$@"); [ ${#MODES[@]} -eq 0 ] && MODES=(free locked closed_angle closed_torque)
 LOGDIR="$(mktemp -d)"
-PIDS=()
 NAME="" REC=""
 
-cleanup() {
-  local pid
-  for pid in "${PIDS[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
-  for pid in "${PIDS[@]}"; do
-    for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "$pid" 2>/dev/null || true
-  done
-  PIDS=()
-}
+source "$ROOT/scripts/stack_processes.sh"   # PIDS, stop_all
+STOP_WAIT=5
+cleanup() { stop_all; }
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 

@@ -35,7 +35,8 @@ PARAMETERS = (
     ParamSpec('profile', 'validation', 'string', '',
               "Input profile: 'validation' (the 130 s antagonistic profile shaped like the "
               "paper's Fig. 8); 'calibration_locked' (static holds then jumps of both valves, "
-              'for pam-identify; joint locked, length 16 x (hold + pair_hold) s); '
+              'for pam-identify; joint locked, length len(voltages) x (hold + pair_hold) s, '
+              '16 x by default); '
               "'calibration_free' (antagonistic ramps and steps at three co-contraction levels, "
               'for pam-identify; joint free).',
               choices=('validation', 'calibration_locked', 'calibration_free')),
@@ -47,6 +48,11 @@ PARAMETERS = (
     ParamSpec('pair_hold', 3.0, 'double', 's',
               'calibration_locked: hold per voltage pair of the jump phase (0: skip it).',
               range=(0.0, 600.0)),
+    ParamSpec('voltages', [0.0, 1.0, 2.0, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0,
+                           9.0, 10.0], 'double[]', 'V',
+              'calibration_locked: the hold voltages (at least 3, in 0..10 V; default: the '
+              'nodes of the shipped valve-map table); fewer voltages make a shorter run, '
+              'len(voltages) x (hold + pair_hold) s.'),
     ParamSpec('seed', 0, 'integer', '', 'Seed of the profile.', range=(0, 2 ** 31 - 1)),
     ParamSpec('rate', 1000.0, 'double', 'Hz', 'Sample rate of the rig (one command per sample).',
               range=(100.0, 10000.0)),
@@ -79,7 +85,7 @@ def profile_inputs(values: dict):
     Ts = 1.0 / values['rate']
     if values['profile'] == 'calibration_locked':
         return locked_calibration_profile(values['seed'], values['hold'], values['pair_hold'],
-                                          Ts=Ts).u
+                                          voltages=values['voltages'], Ts=Ts).u
     if values['profile'] == 'calibration_free':
         return free_calibration_profile(values['seed'], values['duration'], Ts=Ts).u
     return validation_profile(values['seed'], values['duration'], Ts).u

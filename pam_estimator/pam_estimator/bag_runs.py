@@ -12,11 +12,12 @@ From a Jazzy MCAP bag (pam_driver.bags) holding /pam/pressures, /pam/valve_comma
 * x: measured angle and angular velocity (joint_measured at the sample's stamp; linearly
   interpolated over stamps for samples whose measurement is missing) and the measured
   pressures; torque: the measured torque; force, friction, subsystem: not measured (NaN / 0);
-* locked: the measured angle is constant within LOCKED_TOLERANCE over the bag, unless given.
+* locked: the measured angle stays within LOCKED_TOLERANCE (0.2 deg) over the bag, unless given.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,7 +29,7 @@ PRESSURES = '/pam/pressures'
 COMMAND = '/pam/valve_command'
 MEASURED = '/pam/joint_measured'
 INITIAL_COMMAND = (5.5, 5.5)
-LOCKED_TOLERANCE = 1e-9   # rad
+LOCKED_TOLERANCE = math.radians(0.2)   # rad: a locked rig's encoder may jitter by a count or two
 
 
 @dataclass
@@ -40,6 +41,7 @@ class BagRun:
     commands: int                # valve commands in the bag
     measured_missing: int        # samples without their own joint_measured (interpolated)
     duplicates: int              # pressure messages with an already seen stamp (ignored)
+    first_commanded: int = 0     # first sample with a recorded command in effect (0 if none)
 
 
 def is_bag(path) -> bool:
@@ -93,6 +95,7 @@ def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> B
 
     # commands in effect: last command with stamp <= sample stamp
     u = np.tile(np.asarray(INITIAL_COMMAND, dtype=float), (len(stamps), 1))
+    first_commanded = 0
     if commands:
         c_stamps = np.array([s for s, _ in commands], dtype=np.int64)
         c_order = np.argsort(c_stamps, kind='stable')
@@ -101,6 +104,7 @@ def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> B
         idx = np.searchsorted(c_sorted, stamps, side='right') - 1
         has = idx >= 0
         u[has] = c_u[idx[has]]
+        first_commanded = int(np.argmax(has)) if has.any() else len(stamps)
 
     # joint measurement at each sample's stamp
     m_stamps = np.array([s for s, _ in measured], dtype=np.int64)
@@ -123,7 +127,8 @@ def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> B
         force=np.full((n, 2), np.nan), friction=np.zeros(n), subsystem=np.zeros(n, dtype=int),
         p_measured=p.copy(), locked=bool(locked))
     return BagRun(run=run, stamps_ns=stamps, commands=len(commands),
-                  measured_missing=int(n - exact.sum()), duplicates=len(pressures) - n)
+                  measured_missing=int(n - exact.sum()), duplicates=len(pressures) - n,
+                  first_commanded=first_commanded)
 
 
 def load_run(path, locked: bool | None = None) -> SimulationResult:

@@ -22,7 +22,9 @@ REPORT_FILE = 'report.txt'
 
 
 def load_record(path) -> CalibrationRecord:
-    """One calibration run; ValueError naming the file and what is wrong or missing."""
+    """One calibration run; ValueError naming the file and what is wrong or missing. A bag's
+    samples before its first recorded valve command are left out (the rig's valves were at a
+    command the bag does not hold: a driver's safe output, a simulator's initial command)."""
     from pam_driver.bags import BagError
     path = Path(path)
     if is_bag(path):
@@ -34,12 +36,14 @@ def load_record(path) -> CalibrationRecord:
             raise ValueError(f'{path}: no {COMMAND} messages: the valve map and the valve '
                              'transients need the commands the rig was driven with')
         run = bag_run.run
+        start = bag_run.first_commanded     # before it, what the valves got is unknown
     elif path.is_file():
         run = SimulationResult.load(path)
+        start = 0
     else:
         raise ValueError(f'{path}: no such bag directory or run file')
     try:
-        return CalibrationRecord.from_run(run, str(path))
+        return CalibrationRecord.from_run(run, str(path)).since(start)
     except RecordError as exc:
         raise ValueError(str(exc)) from exc
 

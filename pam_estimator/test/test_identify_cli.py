@@ -149,3 +149,43 @@ def test_an_existing_output_is_never_overwritten(bags, tmp_path):
     result = identify(*(bags / n for n in CALIBRATION), '-o', out)
     assert result.returncode == 2 and 'already exists' in result.stderr
     assert (out / 'params.yaml').read_text() == 'mine\n'
+
+
+def copy_bag(source_dir, target, keep):
+    """A copy of a bag holding the messages for which keep(topic, index within topic) is true."""
+    source = load_bag(source_dir)
+    writer = BagWriter(target)
+    for topic, msgtype in source.topics.items():
+        writer.add_topic(topic, msgtype)
+    seen = {}
+    for t, i, data in zip(source.times, source.topic_index, source.data):
+        topic = source.topic_names[i]
+        seen[topic] = seen.get(topic, -1) + 1
+        if keep(topic, seen[topic]):
+            writer.write(topic, t, data)
+    writer.close()
+    return target
+
+
+def test_samples_before_the_first_command_are_left_out(bags, tmp_path):
+    from pam_estimator.calibration_runs import load_record
+    full = load_record(bags / 'free')
+    late = copy_bag(bags / 'free', tmp_path / 'late_commands',
+                    lambda topic, k: topic != '/pam/valve_command' or k >= 1500)
+    record = load_record(late)
+    assert len(record.t) == len(full.t) - 1500
+    np.testing.assert_array_equal(record.u, full.u[1500:])
+    np.testing.assert_array_equal(record.P, full.P[1500:])
+
+
+def test_a_locked_run_whose_encoder_jitters_still_reads_as_locked(tmp_path):
+    from pam_estimator.bag_runs import write_run_bag
+    from pam_model.calibration_profiles import locked_calibration_profile
+    from pam_model.simulate import simulate
+    profile = locked_calibration_profile(hold=0.0, pair_hold=2.0, voltages=(0.0, 5.0, 10.0))
+    run = simulate(PamModel(locked=True), profile.u, np.array([0.2, 0.0, 4.5e5, 4.5e5]))
+    run.x[:, 0] += np.random.default_rng(0).integers(-1, 2, len(run.t)) * 2 * np.pi / 4096
+    locked = load_run(write_run_bag(run, tmp_path / 'jitter'))
+    assert locked.locked                      # one count of a 4096-count encoder either way
+    run.x[::2, 0] += np.radians(0.5)          # a joint that moves is free
+    assert not load_run(write_run_bag(run, tmp_path / 'moving')).locked

@@ -254,3 +254,18 @@ def test_without_static_holds_kappa_is_missing(plant):
     records = records_of(simulate_campaign(PamModel(params=truth), sensor, plan))
     with pytest.raises(IdentificationError, match=r'kappa\(u\) needs settled static holds'):
         identify(records, prior, load_valve_map())
+
+
+def test_a_weakly_excited_mu_p_keeps_its_prior_while_mu_s_is_fitted(plant):
+    """On the 'strong' plant (mu_p 0.4 x nominal) the 30 s free run leaves mu_p ~75 % uncertain:
+    mu_s is fitted alone and mu_p is reported, not guessed."""
+    prior, _, sensor = plant
+    truth = load_scenario('strong').apply(prior)
+    records = records_of(simulate_campaign(PamModel(params=truth), sensor, SHORT_PLAN))
+    with pytest.raises(IdentificationError) as err:
+        identify(records, prior, load_valve_map())
+    assert '[not identified: mu_p]' in str(err.value) and 'mu_s' not in str(err.value)
+    partial = identify(records, prior, load_valve_map(), partial=True)
+    assert [m.parameters for m in partial.missing] == [('mu_p',)]
+    assert partial.params.mu_p == prior.mu_p
+    assert rel(partial.params.mu_s, truth.mu_s) < 0.05

@@ -10,12 +10,13 @@ by 1.6 % and mu_p by 22 %, 10 Hz by 0.1 % and 9 %, 5 Hz: -0.6 % and +1 % (withou
 cut-off gives < 0.3 % and < 5 %); the muscles' pressures change over >= 0.1 s, so 5 Hz keeps them. Slow antagonistic ramps make the joint lag its
 frictionless equilibrium by T_c / stiffness, and co-contraction levels with different pressures
 weigh T_sh (mu_s, grows with F1 + F2) and T_p (mu_p, grows as a pressure nears P_out) differently.
-A coarse grid of both coefficients gives the start of the least-squares refinement (the cost is
+A coarse grid of the coefficients gives the start of the least-squares refinement (the cost is
 not smooth where the joint sticks).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -30,6 +31,7 @@ MIN_TRAVEL = math.radians(5.0)          # rad, a free run must move this much
 PRESSURE_FILTER_HZ = 5.0                # Hz, low-pass of the measured pressures (zero phase)
 GRID = np.linspace(-1.2, 1.2, 9)        # log factors of the coarse start grid
 PARAMETERS = ('mu_s', 'mu_p')
+UNITS = ('-', 'N m Pa^2')
 
 
 @njit(cache=True)
@@ -68,8 +70,13 @@ def filtered_pressures(rec) -> np.ndarray:
     return sosfiltfilt(sos, rec.P, axis=0)
 
 
-def fit_friction(records, params) -> tuple[GroupFit, dict]:
-    """mu_s, mu_p from the free runs, with `params` holding the identified forces."""
+def fit_friction(records, params) -> tuple[GroupFit, dict, list]:
+    """mu_s, mu_p from the free runs, with `params` holding the identified forces.
+
+    Returns the fit, the Parameters changes and what was not identified: when the runs pin mu_s
+    but not mu_p (a small part of T_c inside the envelope), mu_s is fitted again with mu_p held
+    at its prior value and mu_p is reported as not identified.
+    """
     used = [r for r in records if not r.locked and r.travel >= MIN_TRAVEL]
     if not used:
         raise NotIdentifiable(
@@ -79,26 +86,40 @@ def fit_friction(records, params) -> tuple[GroupFit, dict]:
     measured = np.concatenate([r.psi for r in used])
     prior = np.array([params.mu_s, params.mu_p])
 
-    def residual(z):
-        mu_s, mu_p = prior * np.exp(z)
-        p = params.replace(mu_s=float(mu_s), mu_p=float(mu_p)).as_record_array()[0]
-        parts = []
-        for rec, P in inputs:
-            out = np.empty(len(rec.t))
-            joint_trajectory(float(rec.psi[0]), float(rec.psi_dot[0]), P[:, 0], P[:, 1], rec.dt,
-                             p, out)
-            parts.append(out)
-        return np.degrees(np.concatenate(parts) - measured)
+    def solve(fitted: list):
+        """Fit the coefficients with indices `fitted` (0 mu_s, 1 mu_p), the others at prior."""
+        def residual(z):
+            log_factors = np.zeros(2)
+            log_factors[fitted] = z
+            mu_s, mu_p = prior * np.exp(log_factors)
+            p = params.replace(mu_s=float(mu_s), mu_p=float(mu_p)).as_record_array()[0]
+            parts = []
+            for rec, P in inputs:
+                out = np.empty(len(rec.t))
+                joint_trajectory(float(rec.psi[0]), float(rec.psi_dot[0]), P[:, 0], P[:, 1],
+                                 rec.dt, p, out)
+                parts.append(out)
+            return np.degrees(np.concatenate(parts) - measured)
 
-    grid = [(float(np.sum(residual(np.array([a, b])) ** 2)), a, b) for a in GRID for b in GRID]
-    _, a, b = min(grid)
-    sol = least_squares(residual, np.array([a, b]), method='trf', diff_step=1e-2, x_scale=0.1)
-    values = prior * np.exp(sol.x)
-    std = values * standard_errors(sol.jac, sol.fun, correlated=True)
-    estimates = tuple(Estimate(n, float(v), float(s), float(v0), u)
-                      for n, v, s, v0, u in zip(PARAMETERS, values, std, prior,
-                                                ('-', 'N m Pa^2')))
-    check_identified(estimates, 'friction')
+        starts = [np.array(z) for z in itertools.product(GRID, repeat=len(fitted))]
+        start = min(starts, key=lambda z: float(np.sum(residual(z) ** 2)))
+        sol = least_squares(residual, start, method='trf', diff_step=1e-2, x_scale=0.1)
+        values = prior[fitted] * np.exp(sol.x)
+        std = values * standard_errors(sol.jac, sol.fun, correlated=True)
+        estimates = tuple(Estimate(PARAMETERS[i], float(v), float(s), float(prior[i]), UNITS[i])
+                          for i, v, s in zip(fitted, values, std))
+        return sol, estimates
+
+    sol, estimates = solve([0, 1])
+    skipped = []
+    try:
+        check_identified(estimates, 'friction')
+    except NotIdentifiable as gap:
+        if gap.parameters != ('mu_p',):
+            raise
+        skipped.append(gap)
+        sol, estimates = solve([0])
+        check_identified(estimates, 'friction')
     notes = (f'{len(used)} free runs, pressures low-passed at {PRESSURE_FILTER_HZ:g} Hz',)
     return (GroupFit('friction', estimates, float(np.sqrt(np.mean(sol.fun ** 2))), 'deg',
-                     len(measured), notes), dict(zip(PARAMETERS, map(float, values))))
+                     len(measured), notes), {e.name: e.value for e in estimates}, skipped)

@@ -68,6 +68,7 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
         friction = attempt('friction', lambda: fit_friction(records, prior.replace(**changes)))
         if friction:
             changes.update(friction[0])
+            missing.extend(friction[1])
     else:
         missing.append(NotIdentifiable('mu_s and mu_p need the force coefficients identified '
                                        'first (the friction fit compares angles the forces set)',

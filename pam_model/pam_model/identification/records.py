@@ -56,6 +56,13 @@ class CalibrationRecord:
                    P=np.asarray(run.p_measured, dtype=float),
                    tau=np.asarray(run.torque, dtype=float), locked=bool(run.locked))
 
+    def since(self, k: int) -> 'CalibrationRecord':
+        """The record from sample k on (RecordError if too few samples remain)."""
+        if k == 0:
+            return self
+        return CalibrationRecord(self.source, self.t[k:], self.u[k:], self.psi[k:],
+                                 self.psi_dot[k:], self.P[k:], self.tau[k:], self.locked)
+
     @property
     def dt(self) -> np.ndarray:
         """(N-1,) s, the step from each sample to the next."""
