@@ -1,5 +1,5 @@
-"""The whole identification: the four fits in dependency order, the parameter set and valve map
-they give, and a printable report.
+"""The whole identification: the four fits in the paper's order (kappa before the transients it
+drives), the parameter set and valve map they give, and a printable report.
 
 identify() raises IdentificationError listing everything the runs lack (and which parameters each
 gap leaves unidentified) unless partial=True, in which case those parameters keep their prior
