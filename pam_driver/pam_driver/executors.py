@@ -13,7 +13,9 @@ must ask for the default executor (events=False).
 
 from __future__ import annotations
 
+import signal
 import sys
+from contextlib import contextmanager
 
 import rclpy
 from rclpy.executors import Executor, SingleThreadedExecutor
@@ -59,6 +61,21 @@ def spin(executor, context=None) -> None:
     raise rclpy.executors.ExternalShutdownException()
 
 
+@contextmanager
+def interrupts_deferred():
+    """SIGINT and SIGTERM ignored inside the block (main thread only): a node finishing its
+    output, e.g. bag_record closing its bag, is not cut short by a second Ctrl-C."""
+    try:
+        previous = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:          # not the main thread: nothing to defer
+        previous = {}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def run_node(node_factory, name: str, args=None, stop=None) -> int:
     """The main() of a PAM node: init, build the node, spin, shut down.
 
@@ -67,35 +84,37 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     while the node was still starting (an early Ctrl-C) also counts as a clean stop.
     The executor is an EventsExecutor unless the node runs on simulated time.
     A node with a `finished` Future runs until it completes (or Ctrl-C), and its `finish()` gives
-    the exit code. `stop(node)`, if given, runs before the node is destroyed.
+    the exit code; further SIGINT/SIGTERM are ignored while it finishes. `stop(node)`, if given,
+    runs before the node is destroyed.
     """
     from .node_params import ConfigError
     rclpy.init(args=args)
     node = None
     try:
-        node = node_factory()
-        executor = make_executor(events=not node.get_parameter('use_sim_time').value)
-        executor.add_node(node)
-        finished = getattr(node, 'finished', None)
-        if finished is None:
-            spin(executor)
-        else:
-            while rclpy.ok() and not finished.done():
-                executor.spin_until_future_complete(finished, timeout_sec=SPIN_SLICE)
-            return node.finish()
-    except ConfigError as exc:
-        print(f'[{name}] error: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        if getattr(node, 'finished', None) is not None:
-            return node.finish()
-    except Exception:
-        if rclpy.ok():
-            raise
+        try:
+            node = node_factory()
+            executor = make_executor(events=not node.get_parameter('use_sim_time').value)
+            executor.add_node(node)
+            if getattr(node, 'finished', None) is None:
+                spin(executor)
+            else:
+                while rclpy.ok() and not node.finished.done():
+                    executor.spin_until_future_complete(node.finished, timeout_sec=SPIN_SLICE)
+        except ConfigError as exc:
+            print(f'[{name}] error: {exc}', file=sys.stderr)
+            return 2
+        except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+            pass
+        except Exception:
+            if rclpy.ok():
+                raise
+        if getattr(node, 'finished', None) is not None:   # also after an early Ctrl-C
+            with interrupts_deferred():
+                return node.finish()
+        return 0
     finally:
         if node is not None:
             if stop is not None:
                 stop(node)
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
