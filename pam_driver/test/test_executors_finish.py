@@ -18,7 +18,13 @@ NODE = textwrap.dedent('''
         def __init__(self):
             super().__init__('finite_test_node')
             self.finished = Future()
-            print('spinning', flush=True)
+            self.timer = self.create_timer(0.05, self.spinning)
+
+        def spinning(self):
+            if self.timer is not None:
+                self.destroy_timer(self.timer)
+                self.timer = None
+                print('spinning', flush=True)
 
         def finish(self):
             os.kill(os.getpid(), signal.SIGINT)      # the user presses Ctrl-C again
