@@ -6,7 +6,8 @@ The bag (or the selected topics from `start_offset` on) is loaded into memory be
 message's CDR bytes at t0 + (t_msg − t_first) / rate on absolute deadlines (no drift). Options:
 rate factor, loop, topic selection, remapping, start offset, start paused (resume with the
 `~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate
-(the frozen bag time while paused, as `ros2 bag play --clock` does).
+(the frozen bag time while paused, as `ros2 bag play --clock` does; never ahead of the next
+message to send, so after a stall /clock does not run past unsent data).
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
 package) is one error line naming the file and the problem, exit code 2.
 """
@@ -185,7 +186,9 @@ class BagPlayer(Node):
                         due += paused
                     now = time.monotonic_ns()
                     if clock_period is not None and now >= next_clock:
-                        self._publish_clock(first + (now - t0) * rate)
+                        # never ahead of the next message to send: after a stall, /clock
+                        # waits at its time until the backlog is sent
+                        self._publish_clock(min(first + (now - t0) * rate, times[i]))
                         next_clock = now + clock_period
                     wait = due - now
                     if wait <= 0:
