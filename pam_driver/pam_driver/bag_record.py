@@ -3,7 +3,8 @@
 Subscribes raw (the CDR bytes, never deserialised) to every topic under the chosen prefixes
 (default: everything under /pam plus /diagnostics), or to an explicit topic list, discovering
 topics as they appear, and writes each message with its receive time (ns since the epoch) through
-pam_driver.bags (metadata.yaml v9, MCAP, zstd chunks). The subscriptions only queue the bytes; a
+pam_driver.bags (metadata.yaml v9, MCAP, zstd chunks; optionally split into several files by
+size or duration, as `ros2 bag record -b/-d`). The subscriptions only queue the bytes; a
 writer thread writes them, so a slow disk does not delay the callbacks.
 
 Ctrl-C / SIGTERM (or `duration` elapsed) closes the bag cleanly. An existing output directory is
@@ -45,6 +46,13 @@ PARAMETERS = (
     ParamSpec('chunk_interval', 1.0, 'double', 's',
               'Longest time before received messages are written to disk (what a crash loses).',
               range=(0.05, 60.0)),
+    ParamSpec('max_bag_size', 0, 'integer', 'B',
+              'Split the bag into files <output>_0.mcap, _1, ... of at most this size (plus a '
+              'few kB of summary each), as `ros2 bag record -b`; 0: one file.',
+              range=(0, 2**62)),
+    ParamSpec('max_bag_duration', 0.0, 'double', 's',
+              'Split the bag into files of at most this span of receive times, as '
+              '`ros2 bag record -d`; 0: no split by time.', range=(0.0, 1e7)),
     ParamSpec('discovery_period', 0.5, 'double', 's', 'How often to look for new topics.',
               range=(0.05, 10.0)),
     ParamSpec('duration', 0.0, 'double', 's', 'Stop after this long; 0: until Ctrl-C/SIGTERM.',
@@ -53,7 +61,8 @@ PARAMETERS = (
 
 SUMMARY = [
     'Records topics (raw CDR, receive-time stamps) into a ROS 2 Jazzy rosbag2 bag directory:',
-    'metadata.yaml version 9 + one zstd-chunked MCAP file, as `ros2 bag record -s mcap` writes.',
+    'metadata.yaml version 9 + zstd-chunked MCAP file(s), as `ros2 bag record -s mcap` writes',
+    '(one file, or split by max_bag_size / max_bag_duration).',
     'Stop with Ctrl-C or SIGTERM.',
 ]
 
@@ -91,7 +100,9 @@ class BagRecorder(Node):
         self.prefixes = split_list(values['prefixes'])
         try:
             self.bag = BagWriter(output, compression=values['compression'],
-                                 chunk_interval=values['chunk_interval'])
+                                 chunk_interval=values['chunk_interval'],
+                                 max_bag_size=values['max_bag_size'],
+                                 max_bag_duration=values['max_bag_duration'])
         except BagError as exc:
             raise ConfigError(f"parameter 'output': {exc}") from exc
         self.finished = Future()
@@ -204,8 +215,9 @@ class BagRecorder(Node):
                   f'written before the error', file=sys.stderr, flush=True)
             code = 1
         counts = self.bag.counts()
+        files = len(self.bag.files)
         print(f'[{NODE_NAME}] wrote {sum(counts.values())} messages on {len(counts)} topics '
-              f'to {self.bag.path}', flush=True)
+              f'to {self.bag.path}' + (f' ({files} files)' if files > 1 else ''), flush=True)
         for topic, n in sorted(counts.items()):
             print(f'  {topic}: {n}', flush=True)
         return code
@@ -217,6 +229,7 @@ def main(args=None) -> int:
         sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
             f'{NODE_NAME} --ros-args -p output:=out/run1',
             f"{NODE_NAME} --ros-args -p output:=out/run2 -p topics:=/pam/pressures,/pam/estimate",
+            f'{NODE_NAME} --ros-args -p output:=out/run3 -p max_bag_size:=4000000',
         ]))
         return 0
     return run_node(BagRecorder, NODE_NAME, args)

@@ -1,8 +1,9 @@
 """pam-bag-recover: makes the bag directory a crashed recorder left (SIGKILL, power loss: an
 .mcap without summary, no metadata.yaml) a complete bag again (pam_driver.bags.recover_bag).
 
-Every message of the complete records is rewritten into a new `<dir>.mcap` and metadata.yaml;
-the original .mcap is kept beside it as `<dir>.mcap.damaged`. Prints what was recovered. Exit
+Every message of the complete records is rewritten into a new `<dir>.mcap` (a split bag: new
+`<dir>_<i>.mcap`, one per original) and metadata.yaml; the original files are kept beside them
+as `<name>.mcap.damaged`. Prints what was recovered. Exit
 code 2 with one error line if the directory needs no recovery or holds nothing to recover.
 """
 
@@ -24,7 +25,7 @@ def format_recovery(r: Recovery) -> str:
              *(f'    {t:<{width}}  {n}' for t, n in sorted(r.counts.items())),
              f'  span:     {(r.end_ns - r.start_ns) * 1e-9:.3f} s, '
              f'{utc(r.start_ns):%Y-%m-%d %H:%M:%S.%f} to {utc(r.end_ns):%H:%M:%S.%f} (UTC)',
-             f'  dropped:  {r.dropped_bytes} of {r.size} bytes of the damaged file',
+             f'  dropped:  {r.dropped_bytes} of {r.size} bytes of the damaged file(s)',
              *(f'    {p}' for p in first_problems(r.problems, 10))]
     return '\n'.join(lines) + '\n'
 
@@ -32,9 +33,9 @@ def format_recovery(r: Recovery) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog='pam-bag-recover', description='Repairs a bag directory left by a crashed '
-        'recorder (an .mcap with no summary, no metadata.yaml): keeps every complete chunk, '
-        'writes a new .mcap with its summary and metadata.yaml, and keeps the original as '
-        '<name>.mcap.damaged. Messages the recorder still held in memory (at most the last '
+        'recorder (an .mcap with no summary, no metadata.yaml; or a split bag whose last file '
+        'has no summary): keeps every complete chunk, writes new .mcap files (same names) with '
+        'their summaries and metadata.yaml, and keeps the originals as <name>.mcap.damaged. Messages the recorder still held in memory (at most the last '
         'chunk_interval, 1 s) were never on disk and cannot be recovered.')
     parser.add_argument('bag', help='bag directory (or its .mcap file)')
     args = parser.parse_args(argv)

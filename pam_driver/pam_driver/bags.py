@@ -1,7 +1,8 @@
 """rosbag2 (Jazzy) MCAP bags without rosbag2 and without rclpy: writing, checking, reading, info.
 
 The bag layout is Jazzy's (see shared/BAGS.md): a directory with metadata.yaml version 9 and one
-`<dir>.mcap` file, profile ros2, one ros2msg schema per type with its full definition, one channel
+`<dir>.mcap` file (or, split by size or duration, `<dir>_0.mcap`, `<dir>_1.mcap`, ... each complete
+on its own), profile ros2, one ros2msg schema per type with its full definition, one channel
 per topic with metadata offered_qos_profiles and topic_type_hash (RIHS01), a rosbag2 metadata
 record, zstd chunk compression and the per-message index; ros_distro 'jazzy' in metadata.yaml and
 in that record, as rosbag2 Jazzy writes. Writing goes through rosbags' Writer with a storage
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import collections
 import os
-import re
 import shutil
 import struct
 import time
@@ -106,12 +106,6 @@ def qos_from_ints(history: int, depth: int, reliability: int, durability: int, l
 
 
 # ------------------------------------------------------------------------------- writing
-def _with_distro(metadata_yaml: str) -> str:
-    """rosbags' metadata YAML with ros_distro set to ROS_DISTRO (rosbags writes 'rosbags')."""
-    return re.sub(r'^(\s*ros_distro:) rosbags$', rf'\1 {ROS_DISTRO}', metadata_yaml,
-                  flags=re.MULTILINE)
-
-
 class _FullWrite:
     """An unbuffered file that writes everything or raises (a short write becomes an OSError)."""
 
@@ -151,9 +145,16 @@ def _storage_writer_class():
         recovery (truncate to the last complete chunk)."""
 
         chunk_interval = DEFAULT_CHUNK_INTERVAL
+        file_name = ''    # the .mcap's name in the bag directory ('': rosbags' <dir>.mcap)
 
         def __init__(self, path, compression):
+            if self.file_name and (path / self.file_name).exists():
+                raise FileExistsError(f'{path / self.file_name} exists already')
             super().__init__(path, compression)
+            if self.file_name and self.file_name != self.path.name:
+                # rosbags always creates <dir>.mcap; a split bag's files are <dir>_<i>.mcap
+                os.rename(self.path, path / self.file_name)
+                self.path = path / self.file_name
             self.bio.flush()
             self.bio = _FullWrite(self.bio.detach())
             self._chunk_opened = time.monotonic()
@@ -162,8 +163,10 @@ def _storage_writer_class():
             self._committed_chunks = 0
             self._chunk_stats: dict[int, int] = {}
             self.failed: BaseException | None = None
+            self.qos_texts: dict[int, str] = {}   # channel id -> offered_qos_profiles YAML
 
         def add_connection(self, connection, offered_qos_profiles):
+            self.qos_texts[connection.id] = offered_qos_profiles
             metadata = BytesIO()
             write_string(metadata, 'offered_qos_profiles')
             write_string(metadata, offered_qos_profiles)
@@ -211,8 +214,17 @@ def _storage_writer_class():
             self._committed_times = (self.message_start_time, self.message_end_time)
             self._committed_chunks = len(self.chunks)
 
-        def close(self, version, metadata):
-            super().close(version, _with_distro(metadata))   # the MCAP 'rosbag2' record
+        def stats(self, name: str) -> '_BagFile':
+            """What this file holds as of its last complete chunk (after an error) or now."""
+            return _BagFile(name, self.message_start_time, self.message_end_time,
+                            dict(self.channel_stats))
+
+        def size(self) -> int:
+            """Bytes on disk plus the open chunk (uncompressed) and its message indexes: an
+            upper bound of the file's size before its metadata record and summary."""
+            pending = self.chunk.msgs
+            return (self.bio.tell() + self.chunk.bio.tell() + 64 +
+                    sum(16 * len(v) + 24 for v in pending.values()))
 
     return PamMcapWriter
 
@@ -226,17 +238,84 @@ class _Topic:
 
 
 @dataclass
+class _BagFile:
+    """One .mcap file of a bag: its name, first and last message time (ns) and message counts
+    per channel id."""
+
+    name: str
+    start_ns: int = 2**63 - 1
+    end_ns: int = 0
+    counts: dict = field(default_factory=dict)
+
+    @property
+    def count(self) -> int:
+        return sum(self.counts.values())
+
+
+def _metadata(writer, files: list) -> dict:
+    """The rosbag2_bagfile_information (version 9) of a bag made of `files` (_BagFile)."""
+    from rosbags.rosbag2.metadata import dump_qos_v9
+    counts = collections.Counter()
+    for f in files:
+        counts.update(f.counts)
+    start = min(f.start_ns for f in files)
+    return {
+        'version': writer.version,
+        'storage_identifier': 'mcap',
+        'relative_file_paths': [f.name for f in files],
+        'duration': {'nanoseconds': max(0, max(f.end_ns for f in files) - start)},
+        'starting_time': {'nanoseconds_since_epoch': start},
+        'message_count': sum(counts.values()),
+        'topics_with_message_count': [
+            {'topic_metadata': {'name': c.topic, 'type': c.msgtype,
+                                'serialization_format': c.ext.serialization_format,
+                                'offered_qos_profiles': dump_qos_v9(c.ext.offered_qos_profiles),
+                                'type_description_hash': c.digest},
+             'message_count': counts[c.id]}
+            for c in writer.connections],
+        'compression_format': '',
+        'compression_mode': '',
+        'files': [{'path': f.name, 'starting_time': {'nanoseconds_since_epoch': f.start_ns},
+                   'duration': {'nanoseconds': max(0, f.end_ns - f.start_ns)},
+                   'message_count': f.count} for f in files],
+        'custom_data': writer.custom_data or None,
+        'ros_distro': ROS_DISTRO,
+    }
+
+
+def _yaml_text(data) -> str:
+    from io import StringIO
+
+    from ruamel.yaml import YAML
+    yaml = YAML(typ='safe')
+    yaml.default_flow_style = False
+    out = StringIO()
+    yaml.dump(data, out)
+    return out.getvalue()
+
+
+@dataclass
 class BagWriter:
     """A Jazzy MCAP bag being written: add_topic(), write(topic, t_ns, cdr_bytes), close().
 
     The output directory must not exist (never overwritten). After a BagWriteError the bag holds
     what was written before the error; close() then finishes it (summary, metadata.yaml).
+
+    Split bags (as `ros2 bag record --max-bag-size/--max-bag-duration`): with max_bag_size
+    (bytes) or max_bag_duration (s) set, the bag is the files <dir>_0.mcap, <dir>_1.mcap, ...;
+    a file is closed (summary written: it is then complete on its own) and the next one opened
+    before a message that would make the bytes written plus the open chunk (uncompressed) reach
+    max_bag_size, or that comes max_bag_duration or more after the file's first message. The
+    rosbag2 metadata record and the summary (a few kB) come on top of max_bag_size. Without them: one file, <dir>.mcap.
     """
 
     path: Path
     compression: str = 'zstd'           # 'zstd' (per chunk) or 'none'
     chunk_interval: float = DEFAULT_CHUNK_INTERVAL
     typestore: object = None
+    max_bag_size: int = 0               # bytes per file; 0: no split by size
+    max_bag_duration: float = 0.0       # s per file; 0: no split by time
+    split: bool = False                 # files <dir>_<i>.mcap (implied by the two above)
     topics: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -246,10 +325,15 @@ class BagWriter:
         if self.path.exists():
             raise BagError(f'{self.path}: the output already exists; not overwriting it '
                            '(choose another name or remove it)')
+        if self.max_bag_size < 0 or self.max_bag_duration < 0:
+            raise BagError(f'max_bag_size ({self.max_bag_size} B) and max_bag_duration '
+                           f'({self.max_bag_duration} s) must be >= 0 (0: no split)')
+        self.split = self.split or bool(self.max_bag_size or self.max_bag_duration)
         if self.typestore is None:
             self.typestore = make_typestore()
-        storage = _storage_writer_class()
+        self._storage = storage = _storage_writer_class()
         storage.chunk_interval = self.chunk_interval
+        storage.file_name = self._file_name(0)
 
         class _Writer(Writer):
             STORAGE_PLUGINS = {StoragePlugin.MCAP: storage}
@@ -266,10 +350,15 @@ class BagWriter:
         self.set_custom_data('recorder', 'pam_driver bag_record')
         self.closed = False
         self.error: BaseException | None = None
+        self.files: list[_BagFile] = []     # the files closed so far
+
+    def _file_name(self, index: int) -> str:
+        return f'{self.path.name}_{index}.mcap' if self.split else f'{self.path.name}.mcap'
 
     @property
     def mcap_path(self) -> Path:
-        return self.path / f'{self.path.name}.mcap'
+        """The file being written."""
+        return self.path / self._file_name(len(self.files))
 
     def add_topic(self, topic: str, msgtype: str, qos_profiles=()) -> None:
         if not known_type(self.typestore, msgtype):
@@ -284,8 +373,13 @@ class BagWriter:
 
     def write(self, topic: str, t_ns: int, data: bytes) -> None:
         entry = self.topics[topic]
+        t_ns = int(t_ns)
+        if self._writer.storage is None:
+            raise BagWriteError(f'{self.path}: writing stopped after an error: {self.error}')
         try:
-            self._writer.write(entry.connection, int(t_ns), data)
+            if self._file_full(t_ns):
+                self.next_file()
+            self._writer.write(entry.connection, t_ns, data)
         except BagWriteError as exc:
             self.error = exc
             raise
@@ -294,28 +388,69 @@ class BagWriter:
             raise BagWriteError(f'{self.mcap_path}: write failed: {exc}') from exc
         entry.count += 1
 
+    def file_has_messages(self) -> bool:
+        """Whether the file being written holds a message."""
+        storage = self._writer.storage
+        return storage is not None and any(storage.channel_stats.values())
+
+    def _file_full(self, t_ns: int) -> bool:
+        storage = self._writer.storage
+        if not self.split or not self.file_has_messages() or storage.failed is not None:
+            return False
+        return bool((self.max_bag_size and storage.size() >= self.max_bag_size) or
+                    (self.max_bag_duration and
+                     t_ns - storage.message_start_time >= self.max_bag_duration * 1e9))
+
+    def next_file(self) -> None:
+        """Close the file being written (complete, with its summary) and open the next one with
+        the same schemas and channels (a split bag)."""
+        if not self.split:
+            raise BagError(f'{self.path}: not a split bag (max_bag_size, max_bag_duration or '
+                           'split)')
+        old = self._writer.storage
+        self._close_file()
+        self._storage.file_name = self._file_name(len(self.files))
+        try:
+            new = self._storage(self.path, self._writer.compression_mode)
+        except OSError as exc:
+            raise BagWriteError(f'{self.mcap_path}: cannot create the next file of the bag: '
+                                f'{exc}') from exc
+        added = set()
+        for conn in self._writer.connections:
+            if conn.msgtype not in added:
+                new.add_msgtype(conn)
+                added.add(conn.msgtype)
+            new.add_connection(conn, old.qos_texts[conn.id])
+        self._writer.storage = new
+
+    def _close_file(self) -> None:
+        """Write the open file's last chunk and summary; it joins self.files. The file's rosbag2
+        record holds the bag's metadata as of this file."""
+        storage, self._writer.storage = self._writer.storage, None
+        try:
+            if storage.failed is None and storage.chunk.bio.tell():
+                storage.close_chunk()
+        except BagWriteError as exc:
+            self.error = exc
+        self.files.append(storage.stats(storage.path.name))
+        info = _metadata(self._writer, self.files)
+        try:
+            storage.close(self._writer.version, _yaml_text(info).strip())
+        except OSError as exc:
+            raise BagWriteError(f'{storage.path}: cannot finish the file: {exc}') from exc
+
     def close(self) -> None:
-        """Write the summary and metadata.yaml (the counts of what is on disk)."""
+        """Write the last file's summary and metadata.yaml (the counts of what is on disk)."""
         if self.closed:
             return
         self.closed = True
-        storage = self._writer.storage
-        if storage is not None and storage.failed is None:
-            try:
-                if storage.chunk.bio.tell():
-                    storage.close_chunk()
-            except BagWriteError as exc:
-                self.error = exc
-        if storage is not None and storage.failed is not None:
-            # make the outer counts agree with what is in the file
-            self._writer.counts = {cid: n for cid, n in storage.channel_stats.items()}
-            self._writer.min_timestamp, self._writer.max_timestamp = (
-                storage.message_start_time, storage.message_end_time)
         try:
-            self._writer.close()
+            if self._writer.storage is not None:
+                self._close_file()
             meta = self.path / METADATA
             tmp = meta.with_suffix('.yaml.tmp')
-            tmp.write_text(_with_distro(meta.read_text()))
+            tmp.write_text(_yaml_text({'rosbag2_bagfile_information':
+                                       _metadata(self._writer, self.files)}))
             tmp.replace(meta)
         except OSError as exc:
             raise BagWriteError(f'{self.path}: cannot finish the bag: {exc}') from exc
@@ -507,7 +642,7 @@ class Recovery:
 
     path: Path                  # the bag directory, now a complete bag
     damaged: list               # the original files, renamed to <name>.damaged
-    size: int                   # bytes of the damaged .mcap
+    size: int                   # bytes of the damaged .mcap file(s)
     dropped_bytes: int = 0      # of them not recovered: a cut-off tail, unreadable records
     counts: dict = field(default_factory=dict)     # topic -> messages recovered
     start_ns: int = 0           # first and last message (receive) time
@@ -561,104 +696,131 @@ def _parse_records(opcode: int, body: bytes) -> tuple[str, list]:
     return chunk.compression, [r for _, op, b in inner for r in _parse_records(op, b)[1]]
 
 
-def _find_damaged(path) -> tuple[Path, Path]:
-    """The bag directory and its one .mcap file, if it needs recovery; BagError otherwise."""
+def _file_index(mcap: Path) -> tuple:
+    """Sort key of a bag's files: <dir>.mcap, then <dir>_0.mcap, <dir>_1.mcap, ... by number,
+    then any other name."""
+    number = mcap.stem[len(mcap.parent.name) + 1:]
+    if mcap.stem == mcap.parent.name:
+        return (0, 0, '')
+    if mcap.stem.startswith(mcap.parent.name + '_') and number.isdigit():
+        return (1, int(number), '')
+    return (2, 0, mcap.name)
+
+
+def _find_damaged(path) -> tuple[Path, list]:
+    """The bag directory and its .mcap files in order, if it needs recovery; BagError
+    otherwise."""
     path = Path(path)
     if path.is_file() and path.suffix == '.mcap':
         path = path.parent
     if not path.is_dir():
         raise BagError(f'{path}: no such bag directory')
-    mcaps = sorted(path.glob('*.mcap'))
-    if len(mcaps) != 1:
-        raise BagError(f'{path}: {len(mcaps) or "no"} .mcap files (recovery handles a directory '
-                       'with one, as bag_record writes)')
+    mcaps = sorted(path.glob('*.mcap'), key=_file_index)
+    if not mcaps:
+        raise BagError(f'{path}: no .mcap file')
     if (path / METADATA).exists():
         try:
             check_bag(path)
         except BagError:
             pass
         else:
-            raise BagError(f'{path}: a complete bag (metadata.yaml and a readable .mcap with its '
-                           'summary): it needs no recovery')
-    for original in (mcaps[0], path / METADATA):
+            raise BagError(f'{path}: a complete bag (metadata.yaml and readable .mcap files '
+                           'with their summaries): it needs no recovery')
+    for original in (*mcaps, path / METADATA):
         kept = original.with_name(original.name + DAMAGED)
         if kept.exists():
             raise BagError(f'{kept}: already exists (left by an earlier recovery?); move it '
                            'away first')
-    return path, mcaps[0]
+    return path, mcaps
 
 
-def _rewrite(source: Path, out: Path) -> Recovery:
-    """Every message of the complete records of `source` (a crashed .mcap) into a new bag at
-    `out`, through BagWriter (summary, indexes, metadata.yaml, the rosbag2 record)."""
+def _rewrite(sources: list, out: Path) -> Recovery:
+    """Every message of the complete records of `sources` (the .mcap files of a crashed
+    recording, in order) into a new bag at `out`, through BagWriter (summary, indexes,
+    metadata.yaml, the rosbag2 record); one output file per source file."""
+    result = Recovery(path=out, damaged=[], size=sum(f.stat().st_size for f in sources))
+    split = len(sources) > 1 or _file_index(sources[0])[0] == 1     # <dir>_<i>.mcap names
+    state = {'writer': None, 'compression': 'zstd', 'split': split}
+    try:
+        for source in sources:
+            _rewrite_file(source, out, state, result)
+    finally:
+        writer = state['writer']
+        if writer is not None:
+            writer.set_custom_data('recovered_by', 'pam-bag-recover')
+            writer.close()
+    result.counts = {t: n for t, n in (writer.counts() if writer else {}).items() if n}
+    if not result.counts:
+        names = ', '.join(str(f) for f in sources)
+        what = '; '.join([f'{result.size} bytes', *first_problems(result.problems)])
+        raise BagError(f'{names}: no complete message to recover ({what})')
+    return result
+
+
+def _rewrite_file(source: Path, out: Path, state: dict, result: Recovery) -> None:
+    """The messages of one crashed .mcap into the bag being rebuilt (state: its writer, the
+    compression seen), starting a new output file if the bag has one with messages already."""
     from mcap.opcode import Opcode
     from mcap.records import Channel, Message, Schema
     from rosbags.rosbag2.metadata import parse_qos
     from rosbags.typesys import get_types_from_msg
 
     size = source.stat().st_size
-    result = Recovery(path=out, damaged=[], size=size)
-    writer, compression = None, 'zstd'
+    writer = state['writer']
+    if writer is not None and writer.file_has_messages():
+        writer.next_file()
     schemas, topics, lost = {}, {}, collections.Counter()   # lost: channel id -> messages
-    try:
-        with source.open('rb') as f:
-            if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-                raise BagError(f'{source}: not an MCAP file (bad magic)')
-            end = len(MCAP_MAGIC)
-            for offset, opcode, body in _records(f, size):
-                end = offset + _RECORD_HEAD.size + len(body)
-                if opcode in (Opcode.FOOTER, Opcode.DATA_END):   # the summary follows
-                    end = size
-                    break
-                try:
-                    kind, records = _parse_records(opcode, body)
-                except Exception as exc:  # noqa: BLE001 - any damage: drop this record
-                    result.dropped_bytes += end - offset
-                    result.problems.append(f'offset {offset}: unreadable record (opcode '
-                                           f'{opcode:#04x}, {end - offset} bytes): {exc}')
-                    continue
-                if kind is not None:
-                    compression = 'zstd' if kind else 'none'
-                for record in records:
-                    if isinstance(record, Schema):
-                        schemas[record.id] = record
-                    elif isinstance(record, Channel) and record.schema_id in schemas:
-                        schema = schemas[record.schema_id]
-                        writer = writer or BagWriter(out, compression=compression)
-                        try:
-                            if not known_type(writer.typestore, schema.name):
-                                writer.typestore.register(get_types_from_msg(
-                                    schema.data.decode(), schema.name))
-                            if record.topic not in writer.topics:
-                                writer.add_topic(record.topic, schema.name, parse_qos(
-                                    record.metadata.get('offered_qos_profiles', '')))
-                            topics[record.id] = record.topic
-                        except Exception as exc:  # noqa: BLE001 - its messages count as lost
-                            result.problems.append(f'topic {record.topic}: {exc}')
-                    elif isinstance(record, Message) and record.channel_id not in topics:
-                        lost[record.channel_id] += 1
-                    elif isinstance(record, Message):
-                        writer.write(topics[record.channel_id], record.log_time, record.data)
-                        result.start_ns = min(result.start_ns or record.log_time,
-                                              record.log_time)
-                        result.end_ns = max(result.end_ns, record.log_time)
-        if end < size:
-            result.dropped_bytes += size - end
-            result.problems.append(f'offset {end}: the last {size - end} bytes are not a '
-                                   'complete record (cut off by the crash)')
-        if lost:
-            result.problems.append(f'{sum(lost.values())} messages on channel(s) '
-                                   f'{", ".join(map(str, sorted(lost)))} dropped: no usable '
-                                   'channel record')
-    finally:
-        if writer is not None:
-            writer.set_custom_data('recovered_by', 'pam-bag-recover')
-            writer.close()
-    result.counts = {t: n for t, n in (writer.counts() if writer else {}).items() if n}
-    if not result.counts:
-        raise BagError(f'{source}: no complete message to recover '
-                       f'({"; ".join([f"{size} bytes", *first_problems(result.problems)])})')
-    return result
+    with source.open('rb') as f:
+        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise BagError(f'{source}: not an MCAP file (bad magic)')
+        end = len(MCAP_MAGIC)
+        for offset, opcode, body in _records(f, size):
+            end = offset + _RECORD_HEAD.size + len(body)
+            if opcode in (Opcode.FOOTER, Opcode.DATA_END):   # the summary follows
+                end = size
+                break
+            try:
+                kind, records = _parse_records(opcode, body)
+            except Exception as exc:  # noqa: BLE001 - any damage: drop this record
+                result.dropped_bytes += end - offset
+                result.problems.append(f'{source.name} offset {offset}: unreadable record '
+                                       f'(opcode {opcode:#04x}, {end - offset} bytes): {exc}')
+                continue
+            if kind is not None:
+                state['compression'] = 'zstd' if kind else 'none'
+            for record in records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel) and record.schema_id in schemas:
+                    schema = schemas[record.schema_id]
+                    if state['writer'] is None:
+                        state['writer'] = BagWriter(out, compression=state['compression'],
+                                                    split=state['split'])
+                    writer = state['writer']
+                    try:
+                        if not known_type(writer.typestore, schema.name):
+                            writer.typestore.register(get_types_from_msg(
+                                schema.data.decode(), schema.name))
+                        if record.topic not in writer.topics:
+                            writer.add_topic(record.topic, schema.name, parse_qos(
+                                record.metadata.get('offered_qos_profiles', '')))
+                        topics[record.id] = record.topic
+                    except Exception as exc:  # noqa: BLE001 - its messages count as lost
+                        result.problems.append(f'topic {record.topic}: {exc}')
+                elif isinstance(record, Message) and record.channel_id not in topics:
+                    lost[record.channel_id] += 1
+                elif isinstance(record, Message):
+                    writer.write(topics[record.channel_id], record.log_time, record.data)
+                    result.start_ns = min(result.start_ns or record.log_time, record.log_time)
+                    result.end_ns = max(result.end_ns, record.log_time)
+    if end < size:
+        result.dropped_bytes += size - end
+        result.problems.append(f'{source.name} offset {end}: the last {size - end} bytes are '
+                               'not a complete record (cut off by the crash)')
+    if lost:
+        result.problems.append(f'{source.name}: {sum(lost.values())} messages on channel(s) '
+                               f'{", ".join(map(str, sorted(lost)))} dropped: no usable '
+                               'channel record')
 
 
 def _fsync(path: Path) -> None:
@@ -670,24 +832,25 @@ def _fsync(path: Path) -> None:
 
 
 def recover_bag(path) -> Recovery:
-    """Make the bag directory a crashed recorder left (an .mcap without summary, no
-    metadata.yaml) a complete bag: every message of its complete records is rewritten into a new
-    `<dir>.mcap` + metadata.yaml; the original .mcap (and a metadata.yaml that did not open) are
-    kept beside it as `<name>.damaged`. BagError (nothing changed) if the directory needs no
-    recovery or holds no complete message."""
-    bag, source = _find_damaged(path)
+    """Make the bag directory a crashed recorder left (an .mcap without summary, or a split
+    bag's complete files and the last one without summary; no metadata.yaml) a complete bag:
+    every message of their complete records is rewritten into new files of the same names
+    (`<dir>.mcap`, or `<dir>_<i>.mcap` one per original) + metadata.yaml; the original files
+    (and a metadata.yaml that did not open) are kept beside them as `<name>.damaged`. BagError
+    (nothing changed) if the directory needs no recovery or holds no complete message."""
+    bag, sources = _find_damaged(path)
     tmp = bag / RECOVER_TMP
     shutil.rmtree(tmp, ignore_errors=True)     # left by an interrupted recovery
     tmp.mkdir()
     try:
-        result = _rewrite(source, tmp / bag.name)
+        result = _rewrite(sources, tmp / bag.name)
         new_files = sorted((tmp / bag.name).iterdir(), key=lambda p: p.name == METADATA)
         for new in new_files:
             _fsync(new)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    for original in (source, bag / METADATA):   # the recovered data is on disk: swap
+    for original in (*sources, bag / METADATA):   # the recovered data is on disk: swap
         if original.exists():
             result.damaged.append(original.rename(original.with_name(original.name + DAMAGED)))
     for new in new_files:                         # metadata.yaml last: it marks the bag complete

@@ -2,6 +2,7 @@
 recovery of a crashed recording (truncated at several offsets, damaged, garbage)."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -117,6 +118,91 @@ def test_write_error_leaves_a_readable_bag(store, tmp_path):
     assert info['message_count'] == len(contents.data)
 
 
+def _mcap_summary(path):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as f:
+        return make_reader(f).get_summary()
+
+
+def test_split_by_size_gives_complete_files_under_the_limit(store, tmp_path):
+    """max_bag_size: files <dir>_0.mcap, _1, ... each under the limit (plus its metadata record
+    and summary, which grow with the files listed), each a complete MCAP file with the schema and channel; together every message, once, in order, and
+    metadata.yaml lists them with their own times and counts (as rosbag2 splits)."""
+    limit = 150_000
+    write_bag(store, tmp_path / 'b', n=20_000, compression='none', max_bag_size=limit)
+    info = bags.bag_info(tmp_path / 'b')
+    files = [tmp_path / 'b' / f'b_{i}.mcap' for i in range(len(info['files']))]
+    assert info['files'] == [str(f) for f in files] and len(files) >= 4
+    assert not (tmp_path / 'b' / 'b.mcap').exists()
+    total, last_end = 0, 0
+    from ruamel.yaml import YAML
+    meta = YAML(typ='safe').load((tmp_path / 'b' / 'metadata.yaml').read_text())
+    entries = meta['rosbag2_bagfile_information']['files']
+    for f, entry in zip(files, entries):
+        assert f.stat().st_size < limit + 5_000   # + metadata record and summary
+        summary = _mcap_summary(f)
+        assert len(summary.schemas) == 1 and len(summary.channels) == 1
+        stats = summary.statistics
+        assert entry['path'] == f.name and entry['message_count'] == stats.message_count
+        assert entry['starting_time']['nanoseconds_since_epoch'] == stats.message_start_time
+        assert stats.message_start_time > last_end
+        last_end = stats.message_end_time
+        total += stats.message_count
+        assert bags.embedded_metadata(f)['relative_file_paths'][-1] == f.name
+    assert total == 20_000 == info['message_count']
+    contents = bags.load_bag(tmp_path / 'b')
+    values = [store.deserialize_cdr(d, PRESSURES).p1 for d in contents.data]
+    assert values == [1e5 + i for i in range(20_000)]
+    from rosbags.rosbag2 import Reader
+    with Reader(tmp_path / 'b') as reader:
+        assert reader.message_count == 20_000
+        assert sum(1 for _ in reader.messages()) == 20_000
+
+
+def test_split_by_duration(store, tmp_path):
+    """max_bag_duration 2 s over 7 s of messages: 4 files, each starting 2 s after the last."""
+    write_bag(store, tmp_path / 'b', n=7000, max_bag_duration=2.0)
+    info = bags.bag_info(tmp_path / 'b')
+    assert len(info['files']) == 4
+    starts = [_mcap_summary(f).statistics.message_start_time for f in info['files']]
+    assert starts == [10**18 + k * 2 * 10**9 for k in range(4)]
+    assert info['message_count'] == 7000 and abs(info['duration'] - 6.999) < 1e-6
+
+
+def test_split_bag_stops_cleanly_on_a_write_error(store, tmp_path):
+    """A write error in the third file: the first two stay complete, the third keeps its
+    complete chunks; the bag reads back with no gap before the error."""
+    import resource
+    w = bags.BagWriter(tmp_path / 'b', typestore=store, compression='none', chunk_interval=0.0,
+                       max_bag_size=100_000)
+    w.add_topic('/pam/pressures', PRESSURES, [bags.make_qos()])
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    written = 0
+    try:
+        with pytest.raises(bags.BagWriteError, match='b_2.mcap: write failed'):
+            for i in range(100_000):
+                if len(w.files) == 2:    # the third file is open: limit each file to 20 kB
+                    resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, hard))
+                w.write('/pam/pressures', 10**18 + i * 10**6, pressures(store, i))
+                written += 1
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    with pytest.raises(bags.BagWriteError, match='stopped'):
+        w.write('/pam/pressures', 10**18 + written * 10**6, pressures(store, written))
+    w.close()
+    info = bags.bag_info(tmp_path / 'b')
+    assert [Path(f).name for f in info['files']] == ['b_0.mcap', 'b_1.mcap', 'b_2.mcap']
+    contents = bags.load_bag(tmp_path / 'b')
+    values = [store.deserialize_cdr(d, PRESSURES).p1 for d in contents.data]
+    in_two = sum(_mcap_summary(f).statistics.message_count for f in info['files'][:2])
+    assert in_two < len(values) <= written and values == [1e5 + i for i in range(len(values))]
+
+
+def test_split_sizes_are_validated(store, tmp_path):
+    with pytest.raises(bags.BagError, match='max_bag_size'):
+        bags.BagWriter(tmp_path / 'b', typestore=store, max_bag_size=-1)
+
+
 # ------------------------------------------------------------------------------- recovery
 @pytest.fixture(scope='module')
 def chunked(store, tmp_path_factory):
@@ -215,8 +301,34 @@ def test_recover_skips_an_unreadable_chunk(store, chunked, tmp_path):
     original = (path / 'b.mcap').read_bytes()
     result = bags.recover_bag(path)
     assert result.dropped_bytes == bad.chunk_length
-    assert result.problems[0].startswith(f'offset {bad.chunk_start_offset}: unreadable record')
+    assert result.problems[0].startswith(
+        f'b.mcap offset {bad.chunk_start_offset}: unreadable record')
     check_recovered(store, path, [i for i in range(41) if i != 10], original, full)
+
+
+def test_recover_a_split_bag(store, tmp_path):
+    """A split recording killed in its third file: the two complete files and the complete
+    chunks of the third are rewritten into b_0.mcap .. b_2.mcap (same boundaries), the originals
+    kept as .damaged."""
+    write_bag(store, tmp_path / 'b', n=2500, max_bag_duration=1.0, chunk_interval=0.0)
+    bag = tmp_path / 'b'
+    (bag / 'metadata.yaml').unlink()
+    third = bag / 'b_2.mcap'
+    chunks = summary(third).chunk_indexes
+    cut = chunks[200].chunk_start_offset + 7           # inside chunk 200 of the third file
+    originals = {f.name: f.read_bytes() for f in bag.glob('*.mcap')}
+    third.write_bytes(originals['b_2.mcap'][:cut])
+    result = bags.recover_bag(bag)
+    assert result.counts == {'/pam/pressures': 2200} and result.dropped_bytes == 7
+    assert [p.name for p in result.damaged] == [
+        'b_0.mcap.damaged', 'b_1.mcap.damaged', 'b_2.mcap.damaged']
+    info = bags.bag_info(bag)
+    assert [f.split('/')[-1] for f in info['files']] == ['b_0.mcap', 'b_1.mcap', 'b_2.mcap']
+    assert [summary(f).statistics.message_count for f in info['files']] == [1000, 1000, 200]
+    contents = bags.load_bag(bag)
+    assert contents.data == [pressures(store, i) for i in range(2200)]
+    assert (bag / 'b_0.mcap.damaged').read_bytes() == originals['b_0.mcap']
+    assert (bag / 'b_2.mcap.damaged').read_bytes() == originals['b_2.mcap'][:cut]
 
 
 def test_recover_keeps_no_compression(store, tmp_path):
@@ -249,7 +361,8 @@ def test_recover_refuses_what_it_cannot_or_need_not_repair(store, chunked, tmp_p
     for path, error in ((garbage, r'garbage\.mcap: not an MCAP file \(bad magic\)'),
                         (empty, r'empty\.mcap: not an MCAP file'),
                         (header_only, r'header\.mcap: no complete message to recover'),
-                        (no_channel, 'unreadable record .*; 4 messages on channel.s. 1 dropped'),
+                        (no_channel, 'unreadable record .*; nochannel.mcap: 4 messages on channel.s. 1 '
+                                     'dropped'),
                         (junk, 'the last 4096 bytes are not a complete record'),
                         (tmp_path / 'nope', 'nope: no such bag directory')):
         before = sorted(tmp_path.rglob('*'))
