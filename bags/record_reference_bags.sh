@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Regenerates the reference bags in bags/ by recording the live stack (real processes over DDS),
 # always sim_node (mismatch:=mild, realtime, 1 kHz) + ukf_node (nominal model) + bag_record:
-#   free, locked    validation_mild_MODE: + profile_player (20 s validation profile, open loop),
-#                   free or locked joint; topics /pam/pressures, valve_command, joint_measured
+#   free, locked    validation_mild_MODE: + profile_player (the 130 s validation profile, open
+#                   loop), free or locked joint; topics /pam/pressures, valve_command,
+#                   joint_measured; split into files of at most 4 MB (~15 MB in all)
 #   closed_angle    closed_mild_angle: + pi_node (sensor-less, on the estimate) + reference_node
 #                   (angle steps within +-20 deg, 3 s each, the first at 0), free joint, 12 s
 #   closed_torque   closed_mild_torque: the same in torque mode (steps within +-2 N m), locked
@@ -16,7 +17,8 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$ROOT/scripts/env.sh"
 export ROS_DOMAIN_ID="${PAM_BAG_DOMAIN:-77}" ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 unset ROS_LOCALHOST_ONLY
-DURATION="${PAM_BAG_DURATION:-20.0}"   # s of the validation profile (130 s would be ~15 MB per bag)
+DURATION="${PAM_BAG_DURATION:-130.0}"   # s of the validation profile (MODEL.md: 130 s)
+MAX_FILE=4000000   # bytes per .mcap file of a validation bag (bag_record max_bag_size)
 CLOSED_DURATION="${PAM_BAG_CLOSED_DURATION:-12.0}"   # s of steps (with the estimates: ~3.5 MB)
 TOPICS=/pam/pressures,/pam/valve_command,/pam/joint_measured   # what pam-evaluate needs
 MODES=("$@"); [ ${#MODES[@]} -eq 0 ] && MODES=(free locked closed_angle closed_torque)
@@ -48,12 +50,14 @@ rig() {
   PIDS+=("$!")
 }
 
-# record TOPICS: bag_record of TOPICS into bags/$NAME, in the background
+# record TOPICS [PARAM...]: bag_record of TOPICS into bags/$NAME (more -p PARAMs), in the
+# background
 record() {
   rm -rf "$ROOT/bags/$NAME"
   echo "== $NAME: recording, logs in $LOGDIR"
+  local extra=(); for p in "${@:2}"; do extra+=(-p "$p"); done
   bag_record --ros-args -p output:="$ROOT/bags/$NAME" -p topics:="$1" -p discovery_period:=0.1 \
-    >"$LOGDIR/$NAME.record.log" 2>&1 &
+    "${extra[@]}" >"$LOGDIR/$NAME.record.log" 2>&1 &
   REC=$!; PIDS+=("$REC")
 }
 
@@ -63,13 +67,16 @@ finish() {
   kill -INT "$REC"; wait "$REC" || { echo "bag_record failed:"; cat "$LOGDIR/$NAME.record.log"; exit 1; }
   cleanup
   pam-bag-info "$ROOT/bags/$NAME"
-  local size; size="$(du -sb "$ROOT/bags/$NAME" | cut -f1)"
-  [ "$size" -lt 4000000 ] || echo "warning: $NAME has $size bytes (> 4 MB): record it again" >&2
+  local f size
+  for f in "$ROOT/bags/$NAME"/*.mcap; do
+    size="$(stat -c %s "$f")"
+    [ "$size" -lt 4500000 ] || echo "warning: $f has $size bytes (> 4.5 MB): record it again" >&2
+  done
 }
 
 record_validation() {  # free | locked
   NAME="validation_mild_$1"
-  record "$TOPICS"
+  record "$TOPICS" max_bag_size:="$MAX_FILE"
   rig "$1"
   sleep 2   # let bag_record discover the topics before the profile starts
   profile_player --ros-args -p duration:="$DURATION" -p joint_mode:="$1" \

@@ -306,7 +306,8 @@ class BagWriter:
     a file is closed (summary written: it is then complete on its own) and the next one opened
     before a message that would make the bytes written plus the open chunk (uncompressed) reach
     max_bag_size, or that comes max_bag_duration or more after the file's first message. The
-    rosbag2 metadata record and the summary (a few kB) come on top of max_bag_size. Without them: one file, <dir>.mcap.
+    rosbag2 metadata record and the summary (a few kB) come on top of max_bag_size. Without
+    them: one file, <dir>.mcap.
     """
 
     path: Path

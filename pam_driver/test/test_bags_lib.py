@@ -126,8 +126,9 @@ def _mcap_summary(path):
 
 def test_split_by_size_gives_complete_files_under_the_limit(store, tmp_path):
     """max_bag_size: files <dir>_0.mcap, _1, ... each under the limit (plus its metadata record
-    and summary, which grow with the files listed), each a complete MCAP file with the schema and channel; together every message, once, in order, and
-    metadata.yaml lists them with their own times and counts (as rosbag2 splits)."""
+    and summary, which grow with the files listed), each a complete MCAP file with the schema
+    and channel; together every message, once, in order, and metadata.yaml lists them with
+    their own times and counts (as rosbag2 splits)."""
     limit = 150_000
     write_bag(store, tmp_path / 'b', n=20_000, compression='none', max_bag_size=limit)
     info = bags.bag_info(tmp_path / 'b')
@@ -361,8 +362,8 @@ def test_recover_refuses_what_it_cannot_or_need_not_repair(store, chunked, tmp_p
     for path, error in ((garbage, r'garbage\.mcap: not an MCAP file \(bad magic\)'),
                         (empty, r'empty\.mcap: not an MCAP file'),
                         (header_only, r'header\.mcap: no complete message to recover'),
-                        (no_channel, 'unreadable record .*; nochannel.mcap: 4 messages on channel.s. 1 '
-                                     'dropped'),
+                        (no_channel, 'unreadable record .*; nochannel.mcap: 4 messages on '
+                                     'channel.s. 1 dropped'),
                         (junk, 'the last 4096 bytes are not a complete record'),
                         (tmp_path / 'nope', 'nope: no such bag directory')):
         before = sorted(tmp_path.rglob('*'))

@@ -13,9 +13,9 @@ _CACHE = {}
 N, PERIOD = 100, 20_000_000   # the small test bag: N Pressures samples every PERIOD ns (1.98 s)
 
 
-def record(node_process, out: Path):
+def record(node_process, out: Path, *params):
     sim = node_process('sim_node', 'pam_driver')
-    rec = node_process('bag_record', 'pam_driver', '-p', f'output:={out}')
+    rec = node_process('bag_record', 'pam_driver', '-p', f'output:={out}', *params)
     rec.wait_for(lambda: rec.stderr.count('subscribed to /pam/') >= 2, 45.0, 'subscriptions')
     time.sleep(RECORD_S)
     code = rec.stop()
@@ -60,6 +60,46 @@ def test_record_sim_node(node_process, tmp_path_factory):
             f, decoder_factories=[DecoderFactory()]).iter_decoded_messages()
             if ch.topic == '/pam/pressures']
     assert [stamp_ns(m.header.stamp) for m in decoded] == stamps
+
+
+def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path):
+    """max_bag_duration 1 s over > 3 s: run_0.mcap, run_1.mcap, ... each complete and within 1 s
+    of receive times; bag_play plays all of it across the files, in order; pam-bag-info lists
+    the files."""
+    out = tmp_path / 'run'
+    code, rec = record(node_process, out, '-p', 'max_bag_duration:=1.0')
+    assert code == 0, rec.stderr
+    assert 'files)' in rec.stdout, rec.stdout
+    from mcap.reader import make_reader
+    from pam_driver.bags import bag_info, load_bag
+    info = bag_info(out)
+    names = [Path(f).name for f in info['files']]
+    assert len(names) >= 3 and names == [f'run_{i}.mcap' for i in range(len(names))], info
+    for f in info['files']:
+        with open(f, 'rb') as stream:
+            stats = make_reader(stream).get_summary().statistics
+        assert stats.message_count > 0, f
+        assert stats.message_end_time - stats.message_start_time < 1e9, (f, stats)
+    expected = load_bag(out, ['/pam/pressures'])
+    assert len(expected.data) == next(t['count'] for t in info['topics']
+                                      if t['name'] == '/pam/pressures')
+    from pam_interfaces.msg import Pressures
+    got = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
+    player = node_process('bag_play', 'pam_driver', '-p', f'bag:={out}', '-p',
+                          'topics:=/pam/pressures', '-p', 'delay:=1.5')
+    n = len(expected.data)
+    player.wait_for(lambda: len(got) >= n, 30.0, f'{n} replayed pressures')
+    assert player.wait_exit(10.0) == 0
+    from pam_driver.bags import make_typestore
+    store = make_typestore()
+    played = [stamp_ns(m.header.stamp) for m in got.messages()]
+    recorded = [stamp_ns(store.deserialize_cdr(d, 'pam_interfaces/msg/Pressures').header.stamp)
+                for d in expected.data]
+    assert played == recorded, (len(played), len(recorded))
+    shown = subprocess.run([executable('pam-bag-info', 'pam_driver'), str(out)],
+                           capture_output=True, text=True, timeout=30)
+    assert shown.returncode == 0 and f"Files:             {', '.join(names)}" in shown.stdout, \
+        shown.stdout + shown.stderr
 
 
 def test_play_remap_select_timing(node_process, probe):
