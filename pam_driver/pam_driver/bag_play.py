@@ -8,6 +8,8 @@ rate factor, loop, topic selection, remapping, start offset, start paused (resum
 `~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate
 (the frozen bag time while paused, as `ros2 bag play --clock` does; never ahead of the next
 message to send, so after a stall /clock does not run past unsent data).
+At the end it waits (at most `wait_for_all_acked`) for reliable subscribers to acknowledge every
+message: a sample not acknowledged when the writer's process exits is lost.
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
 package) is one error line naming the file and the problem, exit code 2.
 """
@@ -19,6 +21,7 @@ import sys
 import threading
 import time
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -49,6 +52,10 @@ PARAMETERS = (
               range=(0.0, 10000.0)),
     ParamSpec('delay', 0.5, 'double', 's',
               'Wait this long after creating the publishers (for subscribers to match).',
+              range=(0.0, 60.0)),
+    ParamSpec('wait_for_all_acked', 2.0, 'double', 's',
+              'At the end, wait at most this long for reliable subscribers to acknowledge every '
+              'message (as `ros2 bag play --wait-for-all-acked`); 0: exit at once.',
               range=(0.0, 60.0)),
 )
 
@@ -154,6 +161,23 @@ class BagPlayer(Node):
         msg.clock.sec, msg.clock.nanosec = divmod(int(bag_ns), 1_000_000_000)
         self.clock_pub.publish(msg)
 
+    def _wait_for_all_acked(self) -> None:
+        """Messages a reliable subscriber has not yet acknowledged are lost when the process
+        exits: wait for them (at most `wait_for_all_acked` s in all). Not after Ctrl-C/SIGTERM:
+        the ROS context is shut down then, and so are the publishers."""
+        end = time.monotonic() + self.values['wait_for_all_acked']
+        for pub in self.publishers_by_index:
+            left = end - time.monotonic()
+            if left <= 0 or not self.context.ok():
+                return
+            try:
+                acked = pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+            except RuntimeError:     # the context went down meanwhile (a late signal)
+                return
+            if not acked:
+                self.get_logger().warn(f'{pub.topic_name}: not every message was acknowledged '
+                                       f'within wait_for_all_acked')
+
     def _play(self) -> None:
         try:
             self._play_loop()
@@ -207,6 +231,7 @@ class BagPlayer(Node):
         self._quit.set()
         self._running.set()
         self._thread.join(timeout=5.0)
+        self._wait_for_all_acked()
         late = sorted(self.lateness_ns)
         if late:
             p50, p99 = late[len(late) // 2], late[min(len(late) - 1, int(len(late) * 0.99))]

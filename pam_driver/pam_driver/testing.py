@@ -110,6 +110,9 @@ class NodeProcess:
             if predicate():
                 return
             if not self.alive():
+                # what it sent just before exiting may still be on its way
+                if wait_until(predicate, min(1.0, max(0.0, end - time.monotonic()))):
+                    return
                 pytest.fail(f'{self.name} exited with code {self.proc.returncode} while waiting '
                             f'for {what}; stderr:\n{self.stderr}')
             time.sleep(0.01)
