@@ -65,8 +65,6 @@ import threading
 import time
 
 import rclpy
-import rclpy.utilities
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -75,9 +73,8 @@ from rosgraph_msgs.msg import Clock
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_driver.executors import make_executor, spin
-from pam_driver.node_params import declare_parameters, unknown_overrides
-from pam_driver.node_params import cli_preamble
+from pam_driver.executors import run_node
+from pam_driver.node_params import cli_preamble, declare_parameters, unknown_overrides
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_driver.timing import DeadlineSchedule, RateStatistics
 
@@ -380,33 +377,24 @@ class SimNode(Node):
         return level, message, values
 
 
+def started_sim_node() -> SimNode:
+    """A configured SimNode that samples (ConfigError if its parameters are invalid)."""
+    node = SimNode()
+    try:
+        node.configure()
+    except ConfigError:
+        node.destroy_node()
+        raise
+    node.start()
+    return node
+
+
 def main(args=None) -> int:
     argv = sys.argv if args is None else list(args)
     code = cli_preamble(argv, NODE_NAME, usage_text())
     if code is not None:
         return code
-
-    rclpy.init(args=argv)
-    node = None
-    try:
-        node = SimNode()
-        try:
-            node.configure()
-        except ConfigError as exc:
-            node.get_logger().error(f'invalid configuration: {exc}')
-            return 2
-        executor = make_executor(events=True)  # this node never runs on simulated time
-        executor.add_node(node)
-        node.start()
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.stop()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(started_sim_node, NODE_NAME, args=argv, stop=lambda node: node.stop())
 
 
 if __name__ == '__main__':
