@@ -26,7 +26,8 @@ from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.task import Future
 
-from pam_driver.bags import BagError, BagWriteError, BagWriter, known_type, qos_from_ints
+from pam_driver.bags import (BagError, BagWriteError, BagWriter, check_split, known_type,
+                             qos_from_ints)
 from pam_driver.executors import run_node
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
@@ -48,11 +49,11 @@ PARAMETERS = (
               range=(0.05, 60.0)),
     ParamSpec('max_bag_size', 0, 'integer', 'B',
               'Split the bag into files <output>_0.mcap, _1, ... of at most this size (plus a '
-              'few kB of summary each), as `ros2 bag record -b`; 0: one file.',
+              'few kB of summary each), as `ros2 bag record -b`; 0: one file; else >= 100000.',
               range=(0, 2**62)),
     ParamSpec('max_bag_duration', 0.0, 'double', 's',
               'Split the bag into files of at most this span of receive times, as '
-              '`ros2 bag record -d`; 0: no split by time.', range=(0.0, 1e7)),
+              '`ros2 bag record -d`; 0: no split by time; else >= 1.', range=(0.0, 1e7)),
     ParamSpec('discovery_period', 0.5, 'double', 's', 'How often to look for new topics.',
               range=(0.05, 10.0)),
     ParamSpec('duration', 0.0, 'double', 's', 'Stop after this long; 0: until Ctrl-C/SIGTERM.',
@@ -98,6 +99,10 @@ class BagRecorder(Node):
             'rosbag2_%Y_%m_%d-%H_%M_%S')
         self.explicit = split_list(values['topics'])
         self.prefixes = split_list(values['prefixes'])
+        try:
+            check_split(values['max_bag_size'], values['max_bag_duration'])
+        except BagError as exc:
+            raise ConfigError(f'parameter {exc}') from exc
         try:
             self.bag = BagWriter(output, compression=values['compression'],
                                  chunk_interval=values['chunk_interval'],

@@ -29,6 +29,8 @@ from pathlib import Path
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 METADATA = 'metadata.yaml'
 DEFAULT_CHUNK_INTERVAL = 1.0   # s: longest time a received message stays only in memory
+MIN_SPLIT_SIZE = 100_000      # B: smallest max_bag_size (a file of a split bag)
+MIN_SPLIT_DURATION = 1.0      # s: smallest max_bag_duration
 ROS_DISTRO = 'jazzy'   # the bags' ros_distro (rosbag2 writes $ROS_DISTRO; rosbags 'rosbags')
 
 
@@ -294,6 +296,16 @@ def _yaml_text(data) -> str:
     return out.getvalue()
 
 
+def check_split(max_bag_size: int, max_bag_duration: float) -> None:
+    """BagError naming the parameter unless each is 0 (no split) or at least its minimum."""
+    if max_bag_size != 0 and not max_bag_size >= MIN_SPLIT_SIZE:
+        raise BagError(f'max_bag_size {max_bag_size} B: use 0 (no split) or at least '
+                       f'{MIN_SPLIT_SIZE} B')
+    if max_bag_duration != 0 and not max_bag_duration >= MIN_SPLIT_DURATION:
+        raise BagError(f'max_bag_duration {max_bag_duration} s: use 0 (no split) or at least '
+                       f'{MIN_SPLIT_DURATION} s')
+
+
 @dataclass
 class BagWriter:
     """A Jazzy MCAP bag being written: add_topic(), write(topic, t_ns, cdr_bytes), close().
@@ -326,9 +338,7 @@ class BagWriter:
         if self.path.exists():
             raise BagError(f'{self.path}: the output already exists; not overwriting it '
                            '(choose another name or remove it)')
-        if self.max_bag_size < 0 or self.max_bag_duration < 0:
-            raise BagError(f'max_bag_size ({self.max_bag_size} B) and max_bag_duration '
-                           f'({self.max_bag_duration} s) must be >= 0 (0: no split)')
+        check_split(self.max_bag_size, self.max_bag_duration)
         self.split = self.split or bool(self.max_bag_size or self.max_bag_duration)
         if self.typestore is None:
             self.typestore = make_typestore()

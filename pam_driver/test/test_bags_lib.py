@@ -200,8 +200,14 @@ def test_split_bag_stops_cleanly_on_a_write_error(store, tmp_path):
 
 
 def test_split_sizes_are_validated(store, tmp_path):
-    with pytest.raises(bags.BagError, match='max_bag_size'):
-        bags.BagWriter(tmp_path / 'b', typestore=store, max_bag_size=-1)
+    """0 (no split) or at least the minimum: a 1-byte limit would make a file per message."""
+    for kw, name in (({'max_bag_size': -1}, 'max_bag_size'),
+                     ({'max_bag_size': 99_999}, 'max_bag_size'),
+                     ({'max_bag_duration': 0.5}, 'max_bag_duration'),
+                     ({'max_bag_duration': float('nan')}, 'max_bag_duration')):
+        with pytest.raises(bags.BagError, match=f'{name} .*: use 0 .no split. or at least'):
+            bags.BagWriter(tmp_path / 'b', typestore=store, **kw)
+        assert not (tmp_path / 'b').exists()
 
 
 # ------------------------------------------------------------------------------- recovery

@@ -133,6 +133,14 @@ def test_existing_output_refused(node_process, tmp_path):
     assert list(out.iterdir()) == []
 
 
+def test_too_small_split_refused(node_process, tmp_path):
+    rec = node_process('bag_record', 'pam_driver', '-p', f'output:={tmp_path / "b"}',
+                       '-p', 'max_bag_size:=1000')
+    assert rec.wait_exit(30.0) == 2
+    assert 'parameter max_bag_size 1000 B: use 0 (no split) or at least 100000 B' in rec.stderr
+    assert not (tmp_path / 'b').exists()
+
+
 def test_bad_bags_exit_nonzero(node_process, tmp_path):
     bag = _CACHE.get('bag') or pytest.skip('no recorded bag')
     import shutil
