@@ -3,8 +3,8 @@
 
 Every message of the complete records is rewritten into a new `<dir>.mcap` (a split bag: new
 `<dir>_<i>.mcap`, one per original) and metadata.yaml; the original files are kept beside them
-as `<name>.mcap.damaged`. Prints what was recovered. Exit
-code 2 with one error line if the directory needs no recovery or holds nothing to recover.
+as `<name>.mcap.damaged`. Prints what was recovered. Exit code 2 with one error line if the
+directory needs no recovery or holds nothing to recover.
 """
 
 from __future__ import annotations
@@ -35,8 +35,9 @@ def main(argv=None) -> int:
         prog='pam-bag-recover', description='Repairs a bag directory left by a crashed '
         'recorder (an .mcap with no summary, no metadata.yaml; or a split bag whose last file '
         'has no summary): keeps every complete chunk, writes new .mcap files (same names) with '
-        'their summaries and metadata.yaml, and keeps the originals as <name>.mcap.damaged. Messages the recorder still held in memory (at most the last '
-        'chunk_interval, 1 s) were never on disk and cannot be recovered.')
+        'their summaries and metadata.yaml, and keeps the originals as <name>.mcap.damaged. '
+        'Messages the recorder still held in memory (at most the last chunk_interval, 1 s) '
+        'were never on disk and cannot be recovered.')
     parser.add_argument('bag', help='bag directory (or its .mcap file)')
     args = parser.parse_args(argv)
     try:
