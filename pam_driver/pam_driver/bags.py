@@ -751,12 +751,12 @@ def _rewrite(sources: list, out: Path) -> Recovery:
     metadata.yaml, the rosbag2 record); one output file per source file."""
     result = Recovery(path=out, damaged=[], size=sum(f.stat().st_size for f in sources))
     split = len(sources) > 1 or _file_index(sources[0])[0] == 1     # <dir>_<i>.mcap names
-    state = {'writer': None, 'compression': 'zstd', 'split': split}
+    state = _Rebuild(out, split)
     try:
         for source in sources:
-            _rewrite_file(source, out, state, result)
+            _rewrite_file(source, state, result)
     finally:
-        writer = state['writer']
+        writer = state.writer
         if writer is not None:
             writer.set_custom_data('recovered_by', 'pam-bag-recover')
             writer.close()
@@ -768,16 +768,32 @@ def _rewrite(sources: list, out: Path) -> Recovery:
     return result
 
 
-def _rewrite_file(source: Path, out: Path, state: dict, result: Recovery) -> None:
-    """The messages of one crashed .mcap into the bag being rebuilt (state: its writer, the
-    compression seen), starting a new output file if the bag has one with messages already."""
+@dataclass
+class _Rebuild:
+    """The bag recover_bag() is writing: made at the first usable channel record, with the
+    compression of the chunks seen so far."""
+
+    out: Path
+    split: bool
+    compression: str = 'zstd'
+    writer: BagWriter | None = None
+
+    def bag(self) -> BagWriter:
+        if self.writer is None:
+            self.writer = BagWriter(self.out, compression=self.compression, split=self.split)
+        return self.writer
+
+
+def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
+    """The messages of one crashed .mcap into the bag being rebuilt, starting a new output
+    file if the bag has one with messages already."""
     from mcap.opcode import Opcode
     from mcap.records import Channel, Message, Schema
     from rosbags.rosbag2.metadata import parse_qos
     from rosbags.typesys import get_types_from_msg
 
     size = source.stat().st_size
-    writer = state['writer']
+    writer = state.writer
     if writer is not None and writer.file_has_messages():
         writer.next_file()
     schemas, topics, lost = {}, {}, collections.Counter()   # lost: channel id -> messages
@@ -798,16 +814,13 @@ def _rewrite_file(source: Path, out: Path, state: dict, result: Recovery) -> Non
                                        f'(opcode {opcode:#04x}, {end - offset} bytes): {exc}')
                 continue
             if kind is not None:
-                state['compression'] = 'zstd' if kind else 'none'
+                state.compression = 'zstd' if kind else 'none'
             for record in records:
                 if isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel) and record.schema_id in schemas:
                     schema = schemas[record.schema_id]
-                    if state['writer'] is None:
-                        state['writer'] = BagWriter(out, compression=state['compression'],
-                                                    split=state['split'])
-                    writer = state['writer']
+                    writer = state.bag()
                     try:
                         if not known_type(writer.typestore, schema.name):
                             writer.typestore.register(get_types_from_msg(
