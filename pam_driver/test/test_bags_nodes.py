@@ -62,6 +62,22 @@ def test_record_sim_node(node_process, tmp_path_factory):
     assert [stamp_ns(m.header.stamp) for m in decoded] == stamps
 
 
+def resumed_player(node_process, probe, topic: str, *params):
+    """bag_play started paused and resumed once the probe has discovered its publisher of
+    `topic` (and 0.5 s more for the match to complete both ways): no message is sent before the
+    probe's subscription is matched, however slowly the processes start."""
+    from std_srvs.srv import Trigger
+    player = node_process('bag_play', 'pam_driver', *params, '-p', 'start_paused:=true',
+                          '-p', 'delay:=0.0')
+    player.wait_for(lambda: probe.node.count_publishers(topic) > 0, 30.0, 'the publisher')
+    time.sleep(0.5)
+    client = probe.node.create_client(Trigger, '/bag_play/resume')
+    assert client.wait_for_service(timeout_sec=30.0), player.stderr
+    future = client.call_async(Trigger.Request())
+    assert wait_until(future.done, 10.0) and future.result().success, 'no answer from ~/resume'
+    return player
+
+
 def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path):
     """max_bag_duration 1 s over > 3 s: run_0.mcap, run_1.mcap, ... each complete and within 1 s
     of receive times; bag_play plays all of it across the files, in order; pam-bag-info lists
@@ -84,18 +100,21 @@ def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path
     assert len(expected.data) == next(t['count'] for t in info['topics']
                                       if t['name'] == '/pam/pressures')
     from pam_interfaces.msg import Pressures
-    got = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
-    player = node_process('bag_play', 'pam_driver', '-p', f'bag:={out}', '-p',
-                          'topics:=/pam/pressures', '-p', 'delay:=1.5')
     n = len(expected.data)
-    player.wait_for(lambda: len(got) >= n, 30.0, f'{n} replayed pressures')
-    assert player.wait_exit(10.0) == 0
+    # a reader history for all of it: a probe that lags (a busy test process) loses nothing
+    got = probe.subscribe(Pressures, '/pam/pressures', depth=2 * n)
+    player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={out}',
+                            '-p', 'topics:=/pam/pressures')
+    assert player.wait_exit(30.0) == 0, player.stderr
+    wait_until(lambda: len(got) >= n, 5.0)
     from pam_driver.bags import make_typestore
     store = make_typestore()
     played = [stamp_ns(m.header.stamp) for m in got.messages()]
     recorded = [stamp_ns(store.deserialize_cdr(d, 'pam_interfaces/msg/Pressures').header.stamp)
                 for d in expected.data]
-    assert played == recorded, (len(played), len(recorded))
+    seen = set(played)
+    missing = [k for k, t in enumerate(recorded) if t not in seen]
+    assert played == recorded, (len(played), len(recorded), missing[:5], missing[-5:])
     shown = subprocess.run([executable('pam-bag-info', 'pam_driver'), str(out)],
                            capture_output=True, text=True, timeout=30)
     assert shown.returncode == 0 and f"Files:             {', '.join(names)}" in shown.stdout, \
@@ -105,14 +124,14 @@ def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path
 def test_play_remap_select_timing(node_process, probe):
     bag = _CACHE.get('bag') or pytest.skip('no recorded bag')
     from pam_interfaces.msg import JointMeasurement, Pressures
-    got = probe.subscribe(Pressures, '/replay/pressures', depth=1000)
-    other = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
-    player = node_process('bag_play', 'pam_driver', '-p', f'bag:={bag}', '-p',
-                          'topics:=/pam/pressures', '-p',
-                          'remap:=/pam/pressures:=/replay/pressures', '-p', 'delay:=1.5')
     from pam_driver.bags import load_bag
     expected = load_bag(bag, ['/pam/pressures'])
     n = len(expected.data)
+    got = probe.subscribe(Pressures, '/replay/pressures', depth=2 * n)
+    other = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
+    player = resumed_player(node_process, probe, '/replay/pressures', '-p', f'bag:={bag}',
+                            '-p', 'topics:=/pam/pressures',
+                            '-p', 'remap:=/pam/pressures:=/replay/pressures')
     player.wait_for(lambda: len(got) >= n, 30.0, f'{n} replayed pressures')
     assert player.wait_exit(10.0) == 0
     items = got.items()
@@ -274,8 +293,9 @@ def test_every_message_arrives_though_the_player_exits_at_once(node_process, pro
     it until the reliable subscriber has acknowledged every message (samples not yet
     acknowledged when a writer's process exits are lost: without it, the split-bag replay above
     lost its last messages in about one run in three right after `make setup`)."""
-    got = pressures(probe)
-    player = play(node_process, burst_bag)
+    from pam_interfaces.msg import Pressures
+    got = probe.subscribe(Pressures, '/pam/pressures', depth=6000)   # room for all of it
+    player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={burst_bag}')
     assert player.wait_exit(30.0) == 0, player.stderr
     wait_until(lambda: len(got) >= 3000, 5.0)
     assert [index(m) for m in got.messages()] == list(range(3000))
