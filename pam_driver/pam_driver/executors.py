@@ -13,8 +13,11 @@ must ask for the default executor (events=False).
 
 from __future__ import annotations
 
+import faulthandler
 import signal
 import sys
+import threading
+import time
 from contextlib import contextmanager
 
 import rclpy
@@ -22,6 +25,7 @@ from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.task import Future
 
 SPIN_SLICE = 0.5  # s, longest time the executor blocks before re-checking the context
+SHUTDOWN_GRACE = 4.5  # s a node has to exit after Ctrl-C/SIGTERM (pam-bringup escalates at 5 s)
 
 
 def make_executor(events: bool = True, context=None):
@@ -76,6 +80,34 @@ def interrupts_deferred():
             signal.signal(sig, handler)
 
 
+class ShutdownWatchdog:
+    """Once the ROS context is shut down (Ctrl-C, SIGTERM), the process must be gone within
+    `grace` s; if not, faulthandler (a C thread, it needs no GIL) prints every thread's stack to
+    stderr and exits with code 1. A node that hangs at shutdown (seen once in CI: pi_node ignored
+    SIGINT and SIGTERM and was killed, cause not reproduced) then ends with a diagnosis instead
+    of waiting for SIGKILL. disarm() before intended work after a stop (a finite node's
+    finish(), e.g. bag_record closing its bag)."""
+
+    def __init__(self, context, grace: float = SHUTDOWN_GRACE):
+        self._lock = threading.Lock()
+        self._disarmed = False
+        self._grace = grace
+        threading.Thread(target=self._watch, args=(context,), name='shutdown_watchdog',
+                         daemon=True).start()
+
+    def _watch(self, context) -> None:
+        while context.ok():
+            time.sleep(0.1)
+        with self._lock:
+            if not self._disarmed:
+                faulthandler.dump_traceback_later(self._grace, exit=True)
+
+    def disarm(self) -> None:
+        with self._lock:
+            self._disarmed = True
+            faulthandler.cancel_dump_traceback_later()
+
+
 def run_node(node_factory, name: str, args=None, stop=None) -> int:
     """The main() of a PAM node: init, build the node, spin, shut down.
 
@@ -85,10 +117,12 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     The executor is an EventsExecutor unless the node runs on simulated time.
     A node with a `finished` Future runs until it completes (or Ctrl-C), and its `finish()` gives
     the exit code; further SIGINT/SIGTERM are ignored while it finishes. `stop(node)`, if given,
-    runs before the node is destroyed.
+    runs before the node is destroyed. Any other node must be gone SHUTDOWN_GRACE s after
+    Ctrl-C/SIGTERM (ShutdownWatchdog).
     """
     from .node_params import ConfigError
     rclpy.init(args=args)
+    watchdog = ShutdownWatchdog(rclpy.get_default_context())
     node = None
     try:
         try:
@@ -109,6 +143,7 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
             if rclpy.ok():
                 raise
         if getattr(node, 'finished', None) is not None:   # also after an early Ctrl-C
+            watchdog.disarm()
             with interrupts_deferred():
                 return node.finish()
         return 0

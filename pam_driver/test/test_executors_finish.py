@@ -44,3 +44,41 @@ def test_a_second_ctrl_c_does_not_cut_finish_short(ros_domain):
     out, err = process.communicate(timeout=30)
     assert process.returncode == 0, err
     assert 'finished' in out and 'KeyboardInterrupt' not in err
+
+
+HANGING = textwrap.dedent('''
+    import sys, time
+    from rclpy.node import Node
+    from pam_driver.executors import run_node
+
+    class Hanging(Node):
+        def __init__(self):
+            super().__init__('hanging_test_node')
+            self.timer = self.create_timer(0.05, self.spinning)
+
+        def spinning(self):
+            self.destroy_timer(self.timer)
+            print('spinning', flush=True)
+
+    def stop_that_hangs(node):
+        time.sleep(60)                               # a shutdown that never completes
+
+    sys.exit(run_node(Hanging, 'hanging_test_node', stop=stop_that_hangs))
+''')
+
+
+def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain):
+    """ShutdownWatchdog: SHUTDOWN_GRACE after Ctrl-C the hung process prints its threads'
+    stacks (naming where it hangs) and exits with code 1, instead of waiting for SIGKILL."""
+    import time
+    from pam_driver.executors import SHUTDOWN_GRACE
+    process = subprocess.Popen([sys.executable, '-c', HANGING], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    assert process.stdout.readline().strip() == 'spinning'
+    start = time.monotonic()
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=30)
+    took = time.monotonic() - start
+    assert process.returncode == 1, err
+    assert SHUTDOWN_GRACE - 0.5 < took < SHUTDOWN_GRACE + 5.0, took
+    assert 'Timeout' in err and 'stop_that_hangs' in err, err
