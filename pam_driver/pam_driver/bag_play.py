@@ -1,9 +1,10 @@
 """bag_play: publishes a bag's messages from their serialized bytes on their original schedule
 (a `ros2 bag play` stand-in).
 
-The bag (or the selected topics from `start_offset` on) is loaded into memory before playing
-(reading while playing stalls the sends: shared/BAGS.md); a dedicated thread then publishes each
-message's CDR bytes at t0 + (t_msg − t_first) / rate on absolute deadlines (no drift). Options:
+A background thread reads the bag (the selected topics from `start_offset` on) chunk by chunk
+into a bounded read-ahead queue (`read_ahead_size` messages: memory stays bounded, playing starts
+at once however long the bag); a dedicated thread publishes each message's CDR bytes at
+t0 + (t_msg − t_first) / rate on absolute deadlines (no drift). Options:
 rate factor, loop, topic selection, remapping, start offset, start paused (resume with the
 `~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate
 (the frozen bag time while paused, as `ros2 bag play --clock` does; never ahead of the next
@@ -11,12 +12,15 @@ message to send, so after a stall /clock does not run past unsent data).
 At the end it waits (at most `wait_for_all_acked`) for reliable subscribers to acknowledge every
 message: a sample not acknowledged when the writer's process exits is lost.
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
-package) is one error line naming the file and the problem, exit code 2.
+package) is one error line naming the file and the problem, exit code 2, before anything is
+published; a damaged chunk inside an otherwise complete file is found when playback reaches it:
+the messages before it are played, then an error naming the file, exit code 1.
 """
 
 from __future__ import annotations
 
 import collections
+import queue
 import sys
 import threading
 import time
@@ -27,8 +31,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.task import Future
 
 from pam_driver.bag_record import message_class, split_list
-from pam_driver.bags import BagError, load_bag
+from pam_driver.bags import BagError, open_bag
 from pam_driver.executors import run_node
+from pam_driver.read_ahead import END, ReadAhead
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 
@@ -53,6 +58,9 @@ PARAMETERS = (
     ParamSpec('delay', 0.5, 'double', 's',
               'Wait this long after creating the publishers (for subscribers to match).',
               range=(0.0, 60.0)),
+    ParamSpec('read_ahead_size', 10000, 'integer', 'messages',
+              'Messages read ahead of playback by a background thread (memory stays bounded '
+              'however long the bag).', range=(100, 10_000_000)),
     ParamSpec('wait_for_all_acked', 2.0, 'double', 's',
               'At the end, wait at most this long for reliable subscribers to acknowledge every '
               'message (as `ros2 bag play --wait-for-all-acked`); 0: exit at once.',
@@ -86,7 +94,7 @@ class BagPlayer(Node):
         remap = parse_remap(values['remap'])
         topics = split_list(values['topics']) or None
         try:
-            self.bag = load_bag(values['bag'], topics, values['start_offset'])
+            self.bag = open_bag(values['bag'], topics, values['start_offset'])
         except BagError as exc:
             raise ConfigError(str(exc)) from exc
         self.publishers_by_index = []
@@ -110,15 +118,19 @@ class BagPlayer(Node):
         self.finished = Future()
         self.lateness_ns: collections.deque = collections.deque(maxlen=LATENESS_KEPT)
         self.published = 0
+        self.read_waits = 0       # 0.1 s waits for the read-ahead (the reading fell behind)
+        self.exit_code = 0
         self._running = threading.Event()
         if not values['start_paused']:
             self._running.set()
         self._quit = threading.Event()
         self._thread = threading.Thread(target=self._play, name='bag_play', daemon=True)
         self._thread.start()
+        offset = values['start_offset']
         self.get_logger().info(
-            f'playing {len(self.bag.data)} messages on {len(self.bag.topic_names)} topics from '
-            f'{self.bag.path} at rate {values["rate"]:g}' +
+            f'playing {len(self.bag.topic_names)} topics ({self.bag.message_count} messages) '
+            f'of {self.bag.path}' + (f' from {offset:g} s in' if offset else '') +
+            f' at rate {values["rate"]:g}' +
             (' (paused: call ~/resume)' if values['start_paused'] else ''))
 
     @staticmethod
@@ -179,28 +191,54 @@ class BagPlayer(Node):
                                        f'within wait_for_all_acked')
 
     def _play(self) -> None:
+        source = None
         try:
-            self._play_loop()
+            time.sleep(self.values['delay'])
+            source = ReadAhead(self._passes(), capacity=self.values['read_ahead_size'],
+                               name='bag_read')
+            self._play_passes(source)
+        except BagError as exc:     # a damaged chunk: what came before it was played
+            self.get_logger().error(f'{exc}; stopping')
+            self.exit_code = 1
         finally:
+            if source is not None:
+                source.close()
             if not self.finished.done():
                 self.finished.set_result(0)
 
-    def _play_loop(self) -> None:
-        time.sleep(self.values['delay'])
-        bag, pubs = self.bag, self.publishers_by_index
-        times, tix, data = bag.times, bag.topic_index, bag.data
-        if not times:
-            return
+    def _passes(self):
+        """The selected messages, then None (the end of a pass); again while looping."""
+        while True:
+            played = False
+            for item in self.bag.messages():
+                played = True
+                yield item
+            yield None
+            if not (self.values['loop'] and played):
+                return
+
+    def _next(self, source):
+        """The next item of the read-ahead (END once stopped)."""
+        while not self._quit.is_set():
+            try:
+                return source.get(timeout=0.1)
+            except queue.Empty:
+                self.read_waits += 1
+        return END
+
+    def _play_passes(self, source) -> None:
         rate = self.values['rate']
         clock_period = (1e9 / self.values['clock']) if self.clock_pub is not None else None
-        lateness = self.lateness_ns
-        first = min(bag.start_ns + round(self.values['start_offset'] * 1e9), times[0])
-        while not self._quit.is_set():
+        pubs, lateness = self.publishers_by_index, self.lateness_ns
+        first = self.bag.first_ns
+        item = self._next(source)
+        while item is not END:
             self._wait_running(first)
             t0 = time.monotonic_ns()
             next_clock = t0
-            for i in range(len(times)):
-                due = t0 + int((times[i] - first) / rate)
+            while item is not None and item is not END:       # one pass over the bag
+                t_msg, topic, data = item
+                due = t0 + int((t_msg - first) / rate)
                 while True:
                     if self._quit.is_set():
                         return
@@ -212,7 +250,7 @@ class BagPlayer(Node):
                     if clock_period is not None and now >= next_clock:
                         # never ahead of the next message to send: after a stall, /clock
                         # waits at its time until the backlog is sent
-                        self._publish_clock(min(first + (now - t0) * rate, times[i]))
+                        self._publish_clock(min(first + (now - t0) * rate, t_msg))
                         next_clock = now + clock_period
                     wait = due - now
                     if wait <= 0:
@@ -221,11 +259,12 @@ class BagPlayer(Node):
                         wait = min(wait, max(0, next_clock - now))
                     if wait > SPIN_AHEAD * 1e9:
                         time.sleep((wait - SPIN_AHEAD * 1e9) * 1e-9)
-                pubs[tix[i]].publish(data[i])
+                pubs[topic].publish(data)
                 lateness.append(time.monotonic_ns() - due)
                 self.published += 1
-            if not self.values['loop']:
-                return
+                item = self._next(source)
+            if item is None:
+                item = self._next(source)     # the next pass, or END
 
     def finish(self) -> int:
         self._quit.set()
@@ -239,7 +278,7 @@ class BagPlayer(Node):
                   f'{p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us', flush=True)
         else:
             print(f'[{NODE_NAME}] published {self.published} messages', flush=True)
-        return 0
+        return self.exit_code
 
 
 def main(args=None) -> int:

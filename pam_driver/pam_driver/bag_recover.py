@@ -1,5 +1,6 @@
 """pam-bag-recover: makes the bag directory a crashed recorder left (SIGKILL, power loss: an
-.mcap without summary, no metadata.yaml) a complete bag again (pam_driver.bags.recover_bag).
+.mcap without summary, no metadata.yaml), or a complete bag with a damaged chunk (bag_play
+stops at it), a complete bag again (pam_driver.bags.recover_bag).
 
 Every message of the complete records is rewritten into a new `<dir>.mcap` (a split bag: new
 `<dir>_<i>.mcap`, one per original) and metadata.yaml; the original files are kept beside them
@@ -34,8 +35,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog='pam-bag-recover', description='Repairs a bag directory left by a crashed '
         'recorder (an .mcap with no summary, no metadata.yaml; or a split bag whose last file '
-        'has no summary): keeps every complete chunk, writes new .mcap files (same names) with '
-        'their summaries and metadata.yaml, and keeps the originals as <name>.mcap.damaged. '
+        'has no summary; or a complete bag with a damaged chunk): keeps every complete, '
+        'readable chunk, writes new .mcap files (same names) with their summaries and '
+        'metadata.yaml, and keeps the originals as <name>.damaged. '
         'Messages the recorder still held in memory (at most the last chunk_interval, 1 s) '
         'were never on disk and cannot be recovered.')
     parser.add_argument('bag', help='bag directory (or its .mcap file)')

@@ -522,6 +522,76 @@ def check_mcap(path) -> None:
 
 
 @dataclass
+class BagSelection:
+    """A bag's selected topics, opened for streaming: what they are now, their messages on
+    demand (messages()), in receive-time order from `first_ns` on."""
+
+    path: Path
+    topics: dict                # topic -> msgtype
+    qos: dict                   # topic -> list of rosbags Qos
+    topic_names: list           # sorted; messages() gives indexes into it
+    start_ns: int               # the bag's first and last receive times (all topics)
+    end_ns: int
+    first_ns: int               # start_ns + start_offset: where reading starts
+    message_count: int          # of the selected topics in the whole bag
+
+    def messages(self):
+        """Yield (receive time ns, topic index, CDR bytes) of the selected topics from
+        first_ns on, reading the bag chunk by chunk; BagError on a damaged chunk (after the
+        messages before it)."""
+        from rosbags.rosbag2 import Reader
+        if not self.topic_names:
+            return
+        index = {n: i for i, n in enumerate(self.topic_names)}
+        count = 0
+        with Reader(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic in index]
+            try:
+                for conn, t, raw in reader.messages(connections=conns, start=self.first_ns):
+                    yield t, index[conn.topic], bytes(raw)
+                    count += 1
+            except Exception as exc:  # noqa: BLE001
+                files = bag_files(self.path)
+                where = files[0] if len(files) == 1 else self.path
+                raise BagError(f'{where}: corrupt data after {count} messages: {exc} '
+                               f'(`pam-bag-recover {self.path}` keeps the readable chunks)') from exc
+
+
+def bag_files(path) -> list[Path]:
+    """The .mcap files metadata.yaml lists, in order."""
+    from ruamel.yaml import YAML
+    info = YAML(typ='safe').load((Path(path) / METADATA).read_text())
+    return [Path(path) / name for name in
+            info['rosbag2_bagfile_information']['relative_file_paths']]
+
+
+def open_bag(path, topics=None, start_offset: float = 0.0) -> BagSelection:
+    """Check a bag (check_bag) and select `topics` (all if None) from start_offset (s) on;
+    BagError naming the file and the problem, or a topic the bag does not have."""
+    from rosbags.rosbag2 import Reader
+    path = check_bag(path)
+    try:
+        reader = Reader(path)
+        reader.open()
+    except Exception as exc:  # noqa: BLE001
+        raise BagError(f'{path}: cannot open the bag: {exc}') from exc
+    try:
+        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        if topics is not None:
+            missing = sorted(set(topics) - {c.topic for c in reader.connections})
+            if missing:
+                raise BagError(f'{path}: no topic {", ".join(missing)} in the bag (it has: '
+                               f'{", ".join(sorted(reader.topics))})')
+        return BagSelection(path, {c.topic: c.msgtype for c in conns},
+                            {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
+                            sorted({c.topic for c in conns}), reader.start_time, reader.end_time,
+                            reader.start_time + round(start_offset * 1e9),
+                            sum(c.msgcount for c in conns))
+    finally:
+        reader.close()
+
+
+@dataclass
 class BagContents:
     """Messages of a bag loaded into memory, in receive-time order."""
 
@@ -538,39 +608,14 @@ class BagContents:
 
 def load_bag(path, topics=None, start_offset: float = 0.0) -> BagContents:
     """Read a bag's messages (only `topics` if given) from start_offset (s) into memory."""
-    from rosbags.rosbag2 import Reader
-    path = check_bag(path)
-    try:
-        reader = Reader(path)
-        reader.open()
-    except Exception as exc:  # noqa: BLE001
-        raise BagError(f'{path}: cannot open the bag: {exc}') from exc
-    try:
-        conns = [c for c in reader.connections if topics is None or c.topic in topics]
-        if topics is not None:
-            missing = sorted(set(topics) - {c.topic for c in reader.connections})
-            if missing:
-                raise BagError(f'{path}: no topic {", ".join(missing)} in the bag (it has: '
-                               f'{", ".join(sorted(reader.topics))})')
-        names = sorted({c.topic for c in conns})
-        index = {n: i for i, n in enumerate(names)}
-        start = reader.start_time + round(start_offset * 1e9)
-        contents = BagContents(path, {c.topic: c.msgtype for c in conns},
-                               {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
-                               [], [], names, [], reader.start_time, reader.end_time)
-        times, tix, data = contents.times, contents.topic_index, contents.data
-        if conns:
-            try:
-                for conn, t, raw in reader.messages(connections=conns, start=start):
-                    times.append(t)
-                    tix.append(index[conn.topic])
-                    data.append(bytes(raw))
-            except Exception as exc:  # noqa: BLE001
-                raise BagError(f'{path}: corrupt data after {len(times)} messages: '
-                               f'{exc}') from exc
-        return contents
-    finally:
-        reader.close()
+    selection = open_bag(path, topics, start_offset)
+    contents = BagContents(selection.path, selection.topics, selection.qos, [], [],
+                           selection.topic_names, [], selection.start_ns, selection.end_ns)
+    for t, i, data in selection.messages():
+        contents.times.append(t)
+        contents.topic_index.append(i)
+        contents.data.append(data)
+    return contents
 
 
 def embedded_metadata(mcap_path) -> dict:
@@ -731,12 +776,13 @@ def _find_damaged(path) -> tuple[Path, list]:
         raise BagError(f'{path}: no .mcap file')
     if (path / METADATA).exists():
         try:
-            check_bag(path)
+            for _ in open_bag(path).messages():   # every chunk, not only the summaries
+                pass
         except BagError:
             pass
         else:
-            raise BagError(f'{path}: a complete bag (metadata.yaml and readable .mcap files '
-                           'with their summaries): it needs no recovery')
+            raise BagError(f'{path}: a complete bag (metadata.yaml and .mcap files with their '
+                           'summaries, every message readable): it needs no recovery')
     for original in (*mcaps, path / METADATA):
         kept = original.with_name(original.name + DAMAGED)
         if kept.exists():
@@ -857,7 +903,8 @@ def _fsync(path: Path) -> None:
 
 def recover_bag(path) -> Recovery:
     """Make the bag directory a crashed recorder left (an .mcap without summary, or a split
-    bag's complete files and the last one without summary; no metadata.yaml) a complete bag:
+    bag's complete files and the last one without summary; no metadata.yaml), or a complete
+    bag with a damaged chunk, a complete bag again:
     every message of their complete records is rewritten into new files of the same names
     (`<dir>.mcap`, or `<dir>_<i>.mcap` one per original) + metadata.yaml; the original files
     (and a metadata.yaml that did not open) are kept beside them as `<name>.damaged`. BagError

@@ -94,6 +94,46 @@ def test_bad_bags_name_the_file(store, tmp_path):
         bags.load_bag(tmp_path / 'b')
 
 
+def damaged_chunk_bag(full, path, k):
+    """A copy of the complete one-message-per-chunk bag `full` (the `chunked` fixture) whose
+    chunk `k` holds garbage instead of its compressed records; summary and footer intact."""
+    from mcap.reader import make_reader
+    import shutil
+    shutil.copytree(full, path)
+    mcap = path / f'{full.name}.mcap'
+    with open(mcap, 'rb') as f:
+        chunk = make_reader(f).get_summary().chunk_indexes[k]
+    data = bytearray(mcap.read_bytes())
+    end = chunk.chunk_start_offset + chunk.chunk_length
+    data[end - chunk.compressed_size:end] = b'\xaa' * chunk.compressed_size
+    mcap.write_bytes(data)
+    return path
+
+
+def test_open_bag_streams_what_load_bag_loads(store, tmp_path):
+    write_bag(store, tmp_path / 'b', n=500)
+    selection = bags.open_bag(tmp_path / 'b', start_offset=0.1)
+    assert selection.message_count == 500 and selection.topic_names == ['/pam/pressures']
+    assert selection.first_ns == 10**18 + 100_000_000
+    loaded = bags.load_bag(tmp_path / 'b', start_offset=0.1)
+    streamed = list(selection.messages())
+    assert streamed == list(zip(loaded.times, loaded.topic_index, loaded.data))
+    assert [t for t, _, _ in streamed] == [10**18 + i * 10**6 for i in range(100, 500)]
+    assert list(selection.messages()) == streamed      # again (a loop's next pass)
+
+
+def test_a_damaged_chunk_stops_reading_after_the_messages_before_it(store, chunked, tmp_path):
+    """The summary is intact (check_bag passes); the damage shows when reading reaches it."""
+    full, _ = chunked
+    path = damaged_chunk_bag(full, tmp_path / 'full', 20)
+    selection = bags.open_bag(path)
+    got = []
+    with pytest.raises(bags.BagError, match=r'full\.mcap: corrupt data after 20 messages'):
+        for item in selection.messages():
+            got.append(item)
+    assert [data for _, _, data in got] == [pressures(store, i) for i in range(20)]
+
+
 def test_write_error_leaves_a_readable_bag(store, tmp_path):
     """A write failing mid-recording (here: a file size limit) stops writing with BagWriteError;
     the bag closes with every complete chunk before the error."""
@@ -311,6 +351,25 @@ def test_recover_skips_an_unreadable_chunk(store, chunked, tmp_path):
     assert result.problems[0].startswith(
         f'b.mcap offset {bad.chunk_start_offset}: unreadable record')
     check_recovered(store, path, [i for i in range(41) if i != 10], original, full)
+
+
+def test_recover_a_complete_bag_with_a_damaged_chunk(store, chunked, tmp_path):
+    """Summary and metadata.yaml intact, chunk 20 garbage (bag_play stops there): recovery
+    keeps the 59 other messages; the original file and metadata.yaml are kept as .damaged."""
+    full, chunks = chunked
+    path = damaged_chunk_bag(full, tmp_path / 'full', 20)
+    original = (path / 'full.mcap').read_bytes()
+    result = bags.recover_bag(path)
+    assert result.counts == {'/pam/pressures': 59}
+    assert result.dropped_bytes == chunks[20].chunk_length
+    assert result.problems[0].startswith(
+        f'full.mcap offset {chunks[20].chunk_start_offset}: unreadable record')
+    contents = bags.load_bag(path)
+    kept = [i for i in range(60) if i != 20]
+    assert contents.data == [pressures(store, i) for i in kept]
+    assert (path / 'full.mcap.damaged').read_bytes() == original
+    assert sorted(p.name for p in path.iterdir()) == [
+        'full.mcap', 'full.mcap.damaged', 'metadata.yaml', 'metadata.yaml.damaged']
 
 
 def test_recover_a_split_bag(store, tmp_path):

@@ -235,7 +235,8 @@ def test_rate_scales_the_schedule(node_process, probe, small_bag):
 
 def test_loop_plays_again_after_the_end(node_process, probe, small_bag):
     got = pressures(probe)
-    player = play(node_process, small_bag, 'loop:=true', 'rate:=4.0')
+    # a read-ahead queue smaller than the bag: reading while playing, and across passes
+    player = play(node_process, small_bag, 'loop:=true', 'rate:=4.0', 'read_ahead_size:=100')
     player.wait_for(lambda: len(got) >= 2 * N + 10, 30.0, 'two loops and more')
     assert player.alive()
     assert player.stop() == 0
@@ -295,10 +296,28 @@ def test_every_message_arrives_though_the_player_exits_at_once(node_process, pro
     lost its last messages in about one run in three right after `make setup`)."""
     from pam_interfaces.msg import Pressures
     got = probe.subscribe(Pressures, '/pam/pressures', depth=6000)   # room for all of it
-    player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={burst_bag}')
+    player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={burst_bag}',
+                            '-p', 'read_ahead_size:=100')   # read while sending at 10 kHz
     assert player.wait_exit(30.0) == 0, player.stderr
     wait_until(lambda: len(got) >= 3000, 5.0)
     assert [index(m) for m in got.messages()] == list(range(3000))
+
+
+def test_a_damaged_chunk_is_reported_after_playing_what_precedes_it(node_process, probe,
+                                                                    tmp_path):
+    """A complete file whose chunk 20 (of 60, one message each) is garbage passes the checks
+    at start; the player plays messages 0-19, then says which file is damaged, exit 1."""
+    from test_bags_lib import damaged_chunk_bag, write_bag
+    from pam_driver.bags import make_typestore
+    full = tmp_path / 'full'
+    write_bag(make_typestore(), full, n=60, chunk_interval=0.0)
+    bag = damaged_chunk_bag(full, tmp_path / 'damaged' / 'full', 20)
+    got = pressures(probe)
+    player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={bag}')
+    assert player.wait_exit(30.0) == 1, player.stderr
+    assert 'full.mcap: corrupt data after 20 messages' in player.stderr, player.stderr
+    wait_until(lambda: len(got) >= 20, 5.0)
+    assert [index(m) for m in got.messages()] == list(range(20))
 
 
 def test_clock_publishes_the_bag_time_at_the_requested_rate(node_process, probe, small_bag):
