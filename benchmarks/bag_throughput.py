@@ -1,10 +1,12 @@
 """bag_record at 4 topics x 1 kHz: published vs recorded counts; bag_play send lateness.
 
 Run after `source scripts/env.sh`:  .venv/bin/python benchmarks/bag_throughput.py [--seconds 20]
+[--play BAG]
 A publisher thread in this process sends Pressures, ValveCommand, JointMeasurement and
 JointEstimate at 1 kHz each (absolute deadlines) while bag_record runs as a separate process on
 an isolated ROS_DOMAIN_ID; then bag_play replays the bag twice and prints its send lateness:
-with the default read-ahead queue (reading while playing) and with the whole bag read ahead.
+with the default read-ahead queue (reading while playing) and with the whole bag read ahead,
+and its peak memory. `--play BAG` replays another bag (e.g. a 130 s reference bag).
 """
 
 import argparse
@@ -30,6 +32,8 @@ from pam_driver.bags import bag_info  # noqa: E402
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument('--seconds', type=float, default=20.0)
+    parser.add_argument('--play', metavar='BAG', help='replay this bag instead of the recorded '
+                        'one (e.g. bags/validation_mild_free)')
     args = parser.parse_args()
     out = Path(tempfile.mkdtemp()) / 'bench'
     rec = subprocess.Popen(['bag_record', '--ros-args', '-p', f'output:={out}'],
@@ -67,13 +71,30 @@ def main() -> int:
     rclpy.shutdown()
     # the default read-ahead (reading while playing) vs one that holds the whole bag (read in
     # the first second, as a preload would)
+    bag = Path(args.play) if args.play else out
     for label, size in (('read-ahead 10000 messages', 10000), ('whole bag read ahead', 10**7)):
-        play = subprocess.run(['bag_play', '--ros-args', '-p', f'bag:={out}', '-p', 'delay:=0.5',
-                               '-p', f'read_ahead_size:={size}'],
-                              capture_output=True, text=True, timeout=args.seconds * 3 + 60)
-        last = play.stdout.strip().splitlines()[-1] if play.stdout.strip() else play.stderr
-        print(f'{label}: {last}')
+        play = subprocess.Popen(['bag_play', '--ros-args', '-p', f'bag:={bag}', '-p',
+                                 'delay:=0.5', '-p', f'read_ahead_size:={size}'],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        peak = peak_rss_kib(play)
+        stdout, stderr = play.communicate(timeout=30)
+        last = stdout.strip().splitlines()[-1] if stdout.strip() else stderr
+        print(f'{label}: {last}; peak RSS {peak / 1024:.0f} MiB')
     return 0
+
+
+def peak_rss_kib(proc) -> int:
+    """The process's peak resident memory (VmHWM, KiB), last read before it exits."""
+    peak = 0
+    while proc.poll() is None:
+        try:
+            for line in Path(f'/proc/{proc.pid}/status').read_text().splitlines():
+                if line.startswith('VmHWM:'):
+                    peak = int(line.split()[1])
+        except OSError:
+            break
+        time.sleep(0.2)
+    return peak
 
 
 if __name__ == '__main__':
