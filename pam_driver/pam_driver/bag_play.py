@@ -19,12 +19,12 @@ the messages before it are played, then an error naming the file, exit code 1.
 
 from __future__ import annotations
 
-import collections
 import queue
 import sys
 import threading
 import time
 
+import numpy as np
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -39,7 +39,7 @@ from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_p
 
 NODE_NAME = 'bag_play'
 SPIN_AHEAD = 0.0005   # s: sleep until this close to a deadline, then busy-wait
-LATENESS_KEPT = 1_000_000   # send latenesses kept for the p50/p99 report (bounded when looping)
+LATENESS_KEPT = 1_000_000   # the last send latenesses kept for the p50/p99 report (8 MB)
 
 PARAMETERS = (
     ParamSpec('bag', '', 'string', '', 'Bag directory (with metadata.yaml) to play.'),
@@ -116,7 +116,7 @@ class BagPlayer(Node):
         self.create_service(Trigger, '~/resume', self._on_resume)
         self.create_service(Trigger, '~/pause', self._on_pause)
         self.finished = Future()
-        self.lateness_ns: collections.deque = collections.deque(maxlen=LATENESS_KEPT)
+        self.lateness_ns = np.zeros(LATENESS_KEPT, dtype=np.int64)   # a ring, by published
         self.published = 0
         self.read_waits = 0       # 0.1 s waits for the read-ahead (the reading fell behind)
         self.exit_code = 0
@@ -260,7 +260,7 @@ class BagPlayer(Node):
                     if wait > SPIN_AHEAD * 1e9:
                         time.sleep((wait - SPIN_AHEAD * 1e9) * 1e-9)
                 pubs[topic].publish(data)
-                lateness.append(time.monotonic_ns() - due)
+                lateness[self.published % LATENESS_KEPT] = time.monotonic_ns() - due
                 self.published += 1
                 item = self._next(source)
             if item is None:
@@ -271,8 +271,8 @@ class BagPlayer(Node):
         self._running.set()
         self._thread.join(timeout=5.0)
         self._wait_for_all_acked()
-        late = sorted(self.lateness_ns)
-        if late:
+        late = np.sort(self.lateness_ns[:min(self.published, LATENESS_KEPT)])
+        if len(late):
             p50, p99 = late[len(late) // 2], late[min(len(late) - 1, int(len(late) * 0.99))]
             print(f'[{NODE_NAME}] published {self.published} messages; send lateness p50 '
                   f'{p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us', flush=True)
