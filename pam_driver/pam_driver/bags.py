@@ -22,6 +22,7 @@ import collections
 import os
 import shutil
 import struct
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -320,6 +321,9 @@ class BagWriter:
     max_bag_size, or that comes max_bag_duration or more after the file's first message. The
     rosbag2 metadata record and the summary (a few kB) come on top of max_bag_size. Without
     them: one file, <dir>.mcap.
+
+    Thread-safe: bag_record adds topics from its executor thread (discovery) while its writer
+    thread writes (one lock; a topic added during a chunk's compression once corrupted it).
     """
 
     path: Path
@@ -334,6 +338,7 @@ class BagWriter:
     def __post_init__(self):
         from rosbags.rosbag2 import Writer
         from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+        self._lock = threading.RLock()
         self.path = Path(self.path)
         if self.path.exists():
             raise BagError(f'{self.path}: the output already exists; not overwriting it '
@@ -374,22 +379,28 @@ class BagWriter:
     def add_topic(self, topic: str, msgtype: str, qos_profiles=()) -> None:
         if not known_type(self.typestore, msgtype):
             raise BagError(f'unknown message type {msgtype!r} of topic {topic}')
-        conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
-                                           offered_qos_profiles=list(qos_profiles))
-        self.topics[topic] = _Topic(topic, msgtype, conn)
+        with self._lock:
+            conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
+                                               offered_qos_profiles=list(qos_profiles))
+            self.topics[topic] = _Topic(topic, msgtype, conn)
 
     def set_custom_data(self, key: str, value: str) -> None:
         """A custom_data entry of metadata.yaml."""
-        self._writer.set_custom_data(key, value)
+        with self._lock:
+            self._writer.set_custom_data(key, value)
 
     def write(self, topic: str, t_ns: int, data: bytes) -> None:
+        with self._lock:
+            self._write(topic, t_ns, data)
+
+    def _write(self, topic: str, t_ns: int, data: bytes) -> None:
         entry = self.topics[topic]
         t_ns = int(t_ns)
         if self._writer.storage is None:
             raise BagWriteError(f'{self.path}: writing stopped after an error: {self.error}')
         try:
             if self._file_full(t_ns):
-                self.next_file()
+                self._next_file()
             self._writer.write(entry.connection, t_ns, data)
         except BagWriteError as exc:
             self.error = exc
@@ -401,12 +412,16 @@ class BagWriter:
 
     def file_has_messages(self) -> bool:
         """Whether the file being written holds a message."""
+        with self._lock:
+            return self._file_has_messages()
+
+    def _file_has_messages(self) -> bool:
         storage = self._writer.storage
         return storage is not None and any(storage.channel_stats.values())
 
     def _file_full(self, t_ns: int) -> bool:
         storage = self._writer.storage
-        if not self.split or not self.file_has_messages() or storage.failed is not None:
+        if not self.split or not self._file_has_messages() or storage.failed is not None:
             return False
         return bool((self.max_bag_size and storage.size() >= self.max_bag_size) or
                     (self.max_bag_duration and
@@ -415,6 +430,10 @@ class BagWriter:
     def next_file(self) -> None:
         """Close the file being written (complete, with its summary) and open the next one with
         the same schemas and channels (a split bag)."""
+        with self._lock:
+            self._next_file()
+
+    def _next_file(self) -> None:
         if not self.split:
             raise BagError(f'{self.path}: not a split bag (max_bag_size, max_bag_duration or '
                            'split)')
@@ -452,6 +471,10 @@ class BagWriter:
 
     def close(self) -> None:
         """Write the last file's summary and metadata.yaml (the counts of what is on disk)."""
+        with self._lock:
+            self._close()
+
+    def _close(self) -> None:
         if self.closed:
             return
         self.closed = True
@@ -467,7 +490,8 @@ class BagWriter:
             raise BagWriteError(f'{self.path}: cannot finish the bag: {exc}') from exc
 
     def counts(self) -> dict[str, int]:
-        return {t: e.count for t, e in self.topics.items()}
+        with self._lock:
+            return {t: e.count for t, e in self.topics.items()}
 
 
 # ------------------------------------------------------------------------------- reading

@@ -2,6 +2,7 @@
 recovery of a crashed recording (truncated at several offsets, damaged, garbage)."""
 
 import json
+import time
 from pathlib import Path
 
 import pytest
@@ -132,6 +133,38 @@ def test_a_damaged_chunk_stops_reading_after_the_messages_before_it(store, chunk
         for item in selection.messages():
             got.append(item)
     assert [data for _, _, data in got] == [pressures(store, i) for i in range(20)]
+
+
+def test_topics_added_while_another_thread_writes(store, tmp_path):
+    """bag_record adds a topic from its executor thread (discovery) while its writer thread
+    writes and closes chunks: every chunk must stay consistent (a clean-clone CI run once read
+    'Chunk size mismatch' back from a bag whose /diagnostics was discovered mid-recording)."""
+    import threading
+    w = bags.BagWriter(tmp_path / 'b', typestore=store, chunk_interval=0.0)
+    w.add_topic('/pam/pressures', PRESSURES, [bags.make_qos()])
+    data = pressures(store, 0)
+    n, types = 6000, sorted(t for t in store.types if t.startswith(('std_msgs/msg/',
+                                                                      'geometry_msgs/msg/')))
+    added = []
+
+    def add_topics():
+        for i, msgtype in enumerate(types[:60]):
+            w.add_topic(f'/extra/t{i}', msgtype, [bags.make_qos()])
+            added.append(msgtype)
+            time.sleep(0.0005)
+    adder = threading.Thread(target=add_topics)
+    adder.start()
+    for i in range(n):
+        w.write('/pam/pressures', 10**18 + i * 10**6, data)
+    adder.join()
+    w.close()
+    assert len(added) == 60
+    assert len(bags.load_bag(tmp_path / 'b').data) == n      # every chunk decompresses
+    from mcap.reader import make_reader
+    with open(tmp_path / 'b' / 'b.mcap', 'rb') as f:
+        reader = make_reader(f)
+        assert sum(1 for _ in reader.iter_messages()) == n
+        assert len(reader.get_summary().channels) == 61
 
 
 def test_write_error_leaves_a_readable_bag(store, tmp_path):
