@@ -278,6 +278,10 @@ class BagPlayer(Node):
                   f'{p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us', flush=True)
         else:
             print(f'[{NODE_NAME}] published {self.published} messages', flush=True)
+        if self.read_waits:
+            print(f'[{NODE_NAME}] warning: playback waited {self.read_waits} times 0.1 s for '
+                  'the bag to be read (a slow disk? a larger read_ahead_size may help)',
+                  file=sys.stderr, flush=True)
         return self.exit_code
 
 
