@@ -558,6 +558,7 @@ class BagSelection:
     end_ns: int
     first_ns: int               # start_ns + start_offset: where reading starts
     message_count: int          # of the selected topics in the whole bag
+    files: list                 # the .mcap files, in order
 
     def messages(self):
         """Yield (receive time ns, topic index, CDR bytes) of the selected topics from
@@ -568,17 +569,16 @@ class BagSelection:
             return
         index = {n: i for i, n in enumerate(self.topic_names)}
         count = 0
-        with Reader(self.path) as reader:
-            conns = [c for c in reader.connections if c.topic in index]
-            try:
+        try:
+            with Reader(self.path) as reader:
+                conns = [c for c in reader.connections if c.topic in index]
                 for conn, t, raw in reader.messages(connections=conns, start=self.first_ns):
                     yield t, index[conn.topic], bytes(raw)
                     count += 1
-            except Exception as exc:  # noqa: BLE001
-                files = bag_files(self.path)
-                where = files[0] if len(files) == 1 else self.path
-                raise BagError(f'{where}: corrupt data after {count} messages: {exc} '
-                               f'(`pam-bag-recover {self.path}` keeps the readable chunks)') from exc
+        except Exception as exc:  # noqa: BLE001 - damaged, or changed since open_bag
+            where = self.files[0] if len(self.files) == 1 else self.path
+            raise BagError(f'{where}: corrupt data after {count} messages: {exc} (`pam-bag-'
+                           f'recover {self.path}` keeps the readable chunks)') from exc
 
 
 def bag_files(path) -> list[Path]:
@@ -610,7 +610,7 @@ def open_bag(path, topics=None, start_offset: float = 0.0) -> BagSelection:
                             {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
                             sorted({c.topic for c in conns}), reader.start_time, reader.end_time,
                             reader.start_time + round(start_offset * 1e9),
-                            sum(c.msgcount for c in conns))
+                            sum(c.msgcount for c in conns), bag_files(path))
     finally:
         reader.close()
 

@@ -35,8 +35,8 @@ def test_manifest_is_valid_format_3_and_names_its_folder(folder):
 def test_each_dependency_is_listed_once(folder):
     from catkin_pkg.package import parse_package
     package = parse_package(folder / 'package.xml')
-    kinds = ('build_depends', 'buildtool_depends', 'build_export_depends', 'buildtool_export_depends',
-             'exec_depends', 'test_depends', 'doc_depends')
+    kinds = ('build_depends', 'buildtool_depends', 'build_export_depends',
+             'buildtool_export_depends', 'exec_depends', 'test_depends', 'doc_depends')
     for kind in kinds:
         counts = collections.Counter(d.name for d in getattr(package, kind))
         assert not [n for n, c in counts.items() if c > 1], f'{kind} listed twice: {counts}'
