@@ -26,6 +26,7 @@ from rclpy.task import Future
 
 SPIN_SLICE = 0.5  # s, longest time the executor blocks before re-checking the context
 SHUTDOWN_GRACE = 4.5  # s a node has to exit after Ctrl-C/SIGTERM (pam-bringup escalates at 5 s)
+SHUTDOWN_SETTLE = 1.0  # s an executor error may precede the context's shutdown on Ctrl-C
 
 
 def make_executor(events: bool = True, context=None):
@@ -60,9 +61,21 @@ def spin(executor, context=None) -> None:
         except RuntimeError:
             # The wheels' EventsExecutor can raise "Unable to convert call argument" when the
             # context shuts down under it (Ctrl-C): that is a shutdown, not a failure.
-            if context.ok():
+            if not shuts_down(context):
                 raise
     raise rclpy.executors.ExternalShutdownException()
+
+
+def shuts_down(context, within: float = SHUTDOWN_SETTLE) -> bool:
+    """True if the context is shut down or goes down within `within` s. After Ctrl-C the
+    executor can fail (a callback torn down under it) a moment before rclpy's signal handling
+    has marked the context shut down: an error then is part of the shutdown, not a failure."""
+    end = time.monotonic() + within
+    while context.ok():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.01)
+    return True
 
 
 @contextmanager
@@ -140,7 +153,7 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
         except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
             pass
         except Exception:
-            if rclpy.ok():
+            if not shuts_down(rclpy.get_default_context()):
                 raise
         if getattr(node, 'finished', None) is not None:   # also after an early Ctrl-C
             watchdog.disarm()
