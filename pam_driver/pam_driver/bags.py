@@ -19,6 +19,7 @@ Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, regis
 from __future__ import annotations
 
 import collections
+import functools
 import os
 import shutil
 import struct
@@ -307,6 +308,15 @@ def check_split(max_bag_size: int, max_bag_duration: float) -> None:
                        f'{MIN_SPLIT_DURATION} s')
 
 
+def _locked(method):
+    """A BagWriter method run under the writer's (reentrant) lock."""
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+    return run
+
+
 @dataclass
 class BagWriter:
     """A Jazzy MCAP bag being written: add_topic(), write(topic, t_ns, cdr_bytes), close().
@@ -376,31 +386,28 @@ class BagWriter:
         """The file being written."""
         return self.path / self._file_name(len(self.files))
 
+    @_locked
     def add_topic(self, topic: str, msgtype: str, qos_profiles=()) -> None:
         if not known_type(self.typestore, msgtype):
             raise BagError(f'unknown message type {msgtype!r} of topic {topic}')
-        with self._lock:
-            conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
-                                               offered_qos_profiles=list(qos_profiles))
-            self.topics[topic] = _Topic(topic, msgtype, conn)
+        conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
+                                           offered_qos_profiles=list(qos_profiles))
+        self.topics[topic] = _Topic(topic, msgtype, conn)
 
+    @_locked
     def set_custom_data(self, key: str, value: str) -> None:
         """A custom_data entry of metadata.yaml."""
-        with self._lock:
-            self._writer.set_custom_data(key, value)
+        self._writer.set_custom_data(key, value)
 
+    @_locked
     def write(self, topic: str, t_ns: int, data: bytes) -> None:
-        with self._lock:
-            self._write(topic, t_ns, data)
-
-    def _write(self, topic: str, t_ns: int, data: bytes) -> None:
         entry = self.topics[topic]
         t_ns = int(t_ns)
         if self._writer.storage is None:
             raise BagWriteError(f'{self.path}: writing stopped after an error: {self.error}')
         try:
             if self._file_full(t_ns):
-                self._next_file()
+                self.next_file()
             self._writer.write(entry.connection, t_ns, data)
         except BagWriteError as exc:
             self.error = exc
@@ -410,30 +417,24 @@ class BagWriter:
             raise BagWriteError(f'{self.mcap_path}: write failed: {exc}') from exc
         entry.count += 1
 
+    @_locked
     def file_has_messages(self) -> bool:
         """Whether the file being written holds a message."""
-        with self._lock:
-            return self._file_has_messages()
-
-    def _file_has_messages(self) -> bool:
         storage = self._writer.storage
         return storage is not None and any(storage.channel_stats.values())
 
     def _file_full(self, t_ns: int) -> bool:
         storage = self._writer.storage
-        if not self.split or not self._file_has_messages() or storage.failed is not None:
+        if not self.split or not self.file_has_messages() or storage.failed is not None:
             return False
         return bool((self.max_bag_size and storage.size() >= self.max_bag_size) or
                     (self.max_bag_duration and
                      t_ns - storage.message_start_time >= self.max_bag_duration * 1e9))
 
+    @_locked
     def next_file(self) -> None:
         """Close the file being written (complete, with its summary) and open the next one with
         the same schemas and channels (a split bag)."""
-        with self._lock:
-            self._next_file()
-
-    def _next_file(self) -> None:
         if not self.split:
             raise BagError(f'{self.path}: not a split bag (max_bag_size, max_bag_duration or '
                            'split)')
@@ -469,12 +470,9 @@ class BagWriter:
         except OSError as exc:
             raise BagWriteError(f'{storage.path}: cannot finish the file: {exc}') from exc
 
+    @_locked
     def close(self) -> None:
         """Write the last file's summary and metadata.yaml (the counts of what is on disk)."""
-        with self._lock:
-            self._close()
-
-    def _close(self) -> None:
         if self.closed:
             return
         self.closed = True
@@ -489,9 +487,9 @@ class BagWriter:
         except OSError as exc:
             raise BagWriteError(f'{self.path}: cannot finish the bag: {exc}') from exc
 
+    @_locked
     def counts(self) -> dict[str, int]:
-        with self._lock:
-            return {t: e.count for t, e in self.topics.items()}
+        return {t: e.count for t, e in self.topics.items()}
 
 
 # ------------------------------------------------------------------------------- reading
