@@ -214,7 +214,7 @@ def run_step(probe, reference, truth, spec: dict, watched: list, arm: bool, pre:
         # driver_node starts armed (arm_at_start) but a start-up stall of the loop longer than
         # the command watchdog latches it SAFE; ~/arm (harmless when armed) makes the run
         # independent of how the processes happened to start
-        client = probe.node.create_client(Trigger, '/pam/driver_node/arm')
+        client = probe.client(Trigger, '/pam/driver_node/arm')
         assert client.wait_for_service(timeout_sec=10.0), 'no /pam/driver_node/arm'
         future = client.call_async(Trigger.Request())
         deadline = time.monotonic() + 10.0

@@ -14,7 +14,7 @@ from pam_interfaces.msg import ControllerState, JointEstimate, Reference, ValveC
 
 
 def call(probe, srv_type, name, request):
-    client = probe.node.create_client(srv_type, name)
+    client = probe.client(srv_type, name)
     assert client.wait_for_service(timeout_sec=20.0), name
     future = client.call_async(request)
     assert wait_until(future.done, 10.0), name

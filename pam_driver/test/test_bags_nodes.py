@@ -71,7 +71,7 @@ def resumed_player(node_process, probe, topic: str, *params):
                           '-p', 'delay:=0.0')
     player.wait_for(lambda: probe.node.count_publishers(topic) > 0, 30.0, 'the publisher')
     time.sleep(0.5)
-    client = probe.node.create_client(Trigger, '/bag_play/resume')
+    client = probe.client(Trigger, '/bag_play/resume')
     assert client.wait_for_service(timeout_sec=30.0), player.stderr
     future = client.call_async(Trigger.Request())
     assert wait_until(future.done, 10.0) and future.result().success, 'no answer from ~/resume'
@@ -262,7 +262,7 @@ def test_start_paused_plays_nothing_until_resumed(node_process, probe, small_bag
     clock = probe.subscribe(Clock, '/clock', depth=1000)
     player = play(node_process, small_bag, 'start_paused:=true', 'rate:=4.0', 'clock:=20.0',
                   delay=0.2)
-    client = probe.node.create_client(Trigger, '/bag_play/resume')
+    client = probe.client(Trigger, '/bag_play/resume')
     assert client.wait_for_service(timeout_sec=30.0), player.stderr
     player.wait_for(lambda: probe.node.count_publishers('/pam/pressures') > 0, 30.0,
                     'the publisher')

@@ -79,7 +79,7 @@ class Rig:
             time.sleep(period)
 
     def call(self, service: str) -> Trigger.Response:
-        client = self.probe.node.create_client(Trigger, f'/pam/driver_node/{service}')
+        client = self.probe.client(Trigger, f'/pam/driver_node/{service}')
         assert client.wait_for_service(timeout_sec=10.0), f'{service} not available'
         future = client.call_async(Trigger.Request())
         assert self.helpers.wait_until(future.done, 10.0), f'{service} call timed out'

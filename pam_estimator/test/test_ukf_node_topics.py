@@ -79,7 +79,7 @@ def test_bad_pressures_backwards_time_and_reset(node_process, probe):
     assert got[9].header.stamp == got[8].header.stamp and got[9].angle == got[8].angle
     assert got[-1].rejected_samples == 0
     ukf.wait_for(lambda: 'time went backwards' in ukf.stderr + ukf.stdout, 10.0, 'the log line')
-    client = probe.node.create_client(Trigger, '/pam/ukf_node/reset')
+    client = probe.client(Trigger, '/pam/ukf_node/reset')
     assert client.wait_for_service(timeout_sec=10.0)
     future = client.call_async(Trigger.Request())
     assert wait_until(future.done, 10.0) and future.result().success
