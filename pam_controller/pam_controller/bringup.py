@@ -50,6 +50,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from pam_driver.executables import executable_candidates, find_executable
+from pam_driver.stack_dump import STACK_DUMP_SIGNAL
 
 PROG = 'pam-bringup'
 PACKAGE = 'pam_controller'
@@ -57,6 +58,7 @@ DEFAULT_NAMESPACE = '/pam'
 SIGTERM_AFTER = 5.0      # s, SIGINT -> SIGTERM (as ros2 launch)
 STOP_TIMEOUT = 10.0      # s, SIGINT -> SIGKILL
 KILL_TIMEOUT = 5.0       # s, SIGKILL -> reaped
+STACK_DUMP_WAIT = 1.0    # s for a hung node's stacks to reach the log before SIGKILL
 READER_JOIN = 2.0        # s, last output of a child after it exited
 # Exit codes of a child that count as a clean stop after we asked it to stop: rclpy nodes return 0
 # on Ctrl-C / SIGTERM; a process ended by the signal itself gives -2 / -15 (130 / 143 through a
@@ -349,6 +351,16 @@ class Bringup:
         except PermissionError:
             child.proc.send_signal(sig)
 
+    def _dump_stacks(self) -> None:
+        """STACK_DUMP_SIGNAL to every child still running: a PAM node prints every thread's
+        stack (pam_driver.stack_dump), which its reader forwards; wait up to
+        STACK_DUMP_WAIT for it. Where a hung node hangs is then in the log."""
+        for child in self.alive():
+            self._signal_group(child, STACK_DUMP_SIGNAL)
+        end = time.monotonic() + STACK_DUMP_WAIT
+        while self.alive() and time.monotonic() < end:
+            self._sleep(0.05)
+
     def stop(self) -> None:
         """SIGINT to every child; SIGTERM after SIGTERM_AFTER (a node that missed the SIGINT,
         e.g. while still importing); SIGKILL after STOP_TIMEOUT or on a second stop request."""
@@ -365,7 +377,9 @@ class Bringup:
                 break
             if now >= end:
                 self.out.say(f'still running {STOP_TIMEOUT:g} s after SIGINT: '
-                             + ', '.join(c.name for c in self.alive()) + ': killing')
+                             + ', '.join(c.name for c in self.alive())
+                             + ': printing their threads\' stacks (SIGUSR1), then killing')
+                self._dump_stacks()
                 break
             if not termed and now >= term_at:
                 termed = True

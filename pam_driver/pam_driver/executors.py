@@ -1,11 +1,19 @@
-"""Executor choice and spinning shared by the PAM nodes.
+"""Executor choice, spinning and the stop on Ctrl-C/SIGTERM shared by the PAM nodes.
 
 rclpy.experimental.EventsExecutor cuts the cost of a 1 kHz subscription to about half of the
 default executor's. But with the Jazzy wheels (ros-rclpy 7.1.6 on PyPI) its blocking spin() with
 no timeout busy-waits (a full core while idle) and never returns on Ctrl-C. Spinning it in bounded
 slices (spin_until_future_complete on a future that never completes, with a timeout) blocks
-properly and lets SIGINT through as KeyboardInterrupt / ExternalShutdownException. Use
-spin(executor) below instead of executor.spin().
+properly. Use spin(executor, stop) below instead of executor.spin().
+
+Stopping: run_node does not install rclpy's signal handlers. Those shut the ROS context down from
+a thread of their own and raise KeyboardInterrupt wherever the main thread happens to be (often
+inside a subscription callback run by the EventsExecutor's C++ loop); at that moment, rarely, a
+node hung for good (pi_node, then ukf_node, in CI: deaf to SIGINT and SIGTERM, killed) or failed
+with "Unable to convert call argument". StopSignals instead only records the request; the spin
+loop sees it within SPIN_SLICE and the main thread shuts the context down itself, between two
+slices, outside any callback. A second signal raises KeyboardInterrupt (a node that does not stop
+is interrupted where it is).
 
 EventsExecutor timers do not follow /clock under use_sim_time: nodes that run on simulated time
 must ask for the default executor (events=False).
@@ -21,10 +29,13 @@ import time
 from contextlib import contextmanager
 
 import rclpy
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
-SPIN_SLICE = 0.5  # s, longest time the executor blocks before re-checking the context
+from .stack_dump import enable_stack_dump
+
+SPIN_SLICE = 0.25  # s, longest time the executor blocks before seeing a stop request
 SHUTDOWN_GRACE = 4.5  # s a node has to exit after Ctrl-C/SIGTERM (pam-bringup escalates at 5 s)
 SHUTDOWN_SETTLE = 1.0  # s an executor error may precede the context's shutdown on Ctrl-C
 
@@ -44,26 +55,46 @@ def is_events_executor(executor) -> bool:
     return not isinstance(executor, Executor)
 
 
-def spin(executor, context=None) -> None:
-    """Execute callbacks until the context shuts down (e.g. on Ctrl-C).
+class StopSignals:
+    """SIGINT and SIGTERM of a node process (main thread only). The first one is only recorded
+    (`requested`): no rclpy call, no lock, no exception in the signal handler, which can run in
+    the middle of any callback. A second one raises KeyboardInterrupt."""
 
-    Raises what executor.spin() raises on Ctrl-C (KeyboardInterrupt or
-    ExternalShutdownException): catch both in main().
-    """
-    if not is_events_executor(executor):
-        executor.spin()
-        return
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.requested: int | None = None      # the first signal received
+
+    def install(self) -> None:
+        for sig in self.SIGNALS:
+            signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum, frame) -> None:  # noqa: ARG002
+        if self.requested is not None:
+            raise KeyboardInterrupt
+        self.requested = signum
+
+
+def spin(executor, stop: StopSignals, until: Future | None = None, context=None) -> None:
+    """Execute callbacks in SPIN_SLICE slices until `until` completes (returns), or a stop is
+    requested (the context is then shut down here) or the context went down (both raise
+    ExternalShutdownException: catch it in main())."""
     context = context if context is not None else executor.context
-    never = Future()
-    while context.ok():
+    until = until if until is not None else Future()       # never completes
+    while context.ok() and stop.requested is None and not until.done():
         try:
-            executor.spin_until_future_complete(never, timeout_sec=SPIN_SLICE)
+            executor.spin_until_future_complete(until, timeout_sec=SPIN_SLICE)
+        except ExternalShutdownException:
+            break
         except RuntimeError:
             # The wheels' EventsExecutor can raise "Unable to convert call argument" when the
-            # context shuts down under it (Ctrl-C): that is a shutdown, not a failure.
+            # context shuts down under it: that is a shutdown, not a failure.
             if not shuts_down(context):
                 raise
-    raise rclpy.executors.ExternalShutdownException()
+    if until.done() and stop.requested is None:
+        return
+    context.try_shutdown()
+    raise ExternalShutdownException()
 
 
 def shuts_down(context, within: float = SHUTDOWN_SETTLE) -> bool:
@@ -94,15 +125,17 @@ def interrupts_deferred():
 
 
 class ShutdownWatchdog:
-    """Once the ROS context is shut down (Ctrl-C, SIGTERM), the process must be gone within
-    `grace` s; if not, faulthandler (a C thread, it needs no GIL) prints every thread's stack to
-    stderr and exits with code 1. A node that hangs at shutdown (seen once in CI: pi_node ignored
-    SIGINT and SIGTERM and was killed, cause not reproduced) then ends with a diagnosis instead
-    of waiting for SIGKILL. disarm() before intended work after a stop (a finite node's
-    finish(), e.g. bag_record closing its bag)."""
+    """Once a node stops (Ctrl-C, SIGTERM: its spin ended, or the ROS context went down), the
+    process must be gone within `grace` s; if not, faulthandler (a C thread, it needs no GIL)
+    prints every thread's stack to stderr and exits with code 1. A node that hangs at shutdown
+    (seen in CI: pi_node, then ukf_node, ignored SIGINT and SIGTERM and were killed; not
+    reproduced here) then ends with a diagnosis instead of waiting for SIGKILL. arm() when the
+    stop begins (the context may go down only at the end of it); disarm() before intended work
+    after a stop (a finite node's finish(), e.g. bag_record closing its bag)."""
 
     def __init__(self, context, grace: float = SHUTDOWN_GRACE):
         self._lock = threading.Lock()
+        self._armed = False
         self._disarmed = False
         self._grace = grace
         threading.Thread(target=self._watch, args=(context,), name='shutdown_watchdog',
@@ -111,8 +144,13 @@ class ShutdownWatchdog:
     def _watch(self, context) -> None:
         while context.ok():
             time.sleep(0.1)
+        self.arm()
+
+    def arm(self) -> None:
+        """Start the countdown (once; not after disarm())."""
         with self._lock:
-            if not self._disarmed:
+            if not (self._armed or self._disarmed):
+                self._armed = True
                 faulthandler.dump_traceback_later(self._grace, exit=True)
 
     def disarm(self) -> None:
@@ -125,35 +163,37 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     """The main() of a PAM node: init, build the node, spin, shut down.
 
     Returns the exit code: 0 after Ctrl-C/SIGTERM, 2 when the node's configuration is invalid
-    (ConfigError, printed as one line). An exception raised because the context was shut down
-    while the node was still starting (an early Ctrl-C) also counts as a clean stop.
+    (ConfigError, printed as one line). Ctrl-C/SIGTERM (StopSignals) stops the spin within
+    SPIN_SLICE and shuts the context down; one while the node is still starting stops it once
+    started; a second one interrupts (KeyboardInterrupt) wherever the node is.
     The executor is an EventsExecutor unless the node runs on simulated time.
     A node with a `finished` Future runs until it completes (or Ctrl-C), and its `finish()` gives
     the exit code; further SIGINT/SIGTERM are ignored while it finishes. `stop(node)`, if given,
-    runs before the node is destroyed. Any other node must be gone SHUTDOWN_GRACE s after
-    Ctrl-C/SIGTERM (ShutdownWatchdog).
+    runs before the node is destroyed. Any other node must be gone SHUTDOWN_GRACE s after its
+    spin ends or the context goes down (ShutdownWatchdog). SIGUSR1 prints every thread's stack
+    (stack_dump).
     """
     from .node_params import ConfigError
-    rclpy.init(args=args)
-    watchdog = ShutdownWatchdog(rclpy.get_default_context())
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop_signals = StopSignals()
+    stop_signals.install()
+    enable_stack_dump()
+    context = rclpy.get_default_context()
+    watchdog = ShutdownWatchdog(context)
     node = None
     try:
         try:
             node = node_factory()
             executor = make_executor(events=not node.get_parameter('use_sim_time').value)
             executor.add_node(node)
-            if getattr(node, 'finished', None) is None:
-                spin(executor)
-            else:
-                while rclpy.ok() and not node.finished.done():
-                    executor.spin_until_future_complete(node.finished, timeout_sec=SPIN_SLICE)
+            spin(executor, stop_signals, until=getattr(node, 'finished', None))
         except ConfigError as exc:
             print(f'[{name}] error: {exc}', file=sys.stderr)
             return 2
-        except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        except (KeyboardInterrupt, ExternalShutdownException):
             pass
         except Exception:
-            if not shuts_down(rclpy.get_default_context()):
+            if not shuts_down(context):
                 raise
         if getattr(node, 'finished', None) is not None:   # also after an early Ctrl-C
             watchdog.disarm()
@@ -161,6 +201,7 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
                 return node.finish()
         return 0
     finally:
+        watchdog.arm()      # a no-op after disarm(): a finite node's finish() is done by now
         if node is not None:
             if stop is not None:
                 stop(node)

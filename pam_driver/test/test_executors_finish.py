@@ -82,3 +82,104 @@ def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain):
     assert process.returncode == 1, err
     assert SHUTDOWN_GRACE - 0.5 < took < SHUTDOWN_GRACE + 5.0, took
     assert 'Timeout' in err and 'stop_that_hangs' in err, err
+
+
+GIL_HANG = textwrap.dedent('''
+    import ctypes, sys
+    from rclpy.node import Node
+    from pam_driver.executors import run_node
+
+    class Spinning(Node):
+        def __init__(self):
+            super().__init__('gil_hang_test_node')
+            self.timer = self.create_timer(0.05, self.spinning)
+
+        def spinning(self):
+            self.destroy_timer(self.timer)
+            print('spinning', flush=True)
+
+    def deadlocked(node):
+        # blocks in C *holding the GIL* (PyDLL does not release it), as a deadlock between the
+        # GIL and a lock in a C extension would: no Python thread runs any more
+        ctypes.PyDLL(None).sleep(60)
+
+    sys.exit(run_node(Spinning, 'gil_hang_test_node', stop=deadlocked))
+''')
+
+
+def test_a_node_deadlocked_with_the_gil_held_at_shutdown_exits_with_its_stacks(ros_domain):
+    """The watchdog is armed when the stop begins, by the main thread: a stop that blocks every
+    Python thread at once (GIL held) still ends SHUTDOWN_GRACE later with the stacks."""
+    import time
+    from pam_driver.executors import SHUTDOWN_GRACE
+    process = subprocess.Popen([sys.executable, '-c', GIL_HANG], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    assert process.stdout.readline().strip() == 'spinning'
+    start = time.monotonic()
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=30)
+    took = time.monotonic() - start
+    assert process.returncode == 1, err
+    assert took < SHUTDOWN_GRACE + 5.0, took
+    assert 'Timeout' in err and 'deadlocked' in err, err
+
+
+WATCHDOG_ARMED = textwrap.dedent('''
+    import ctypes, rclpy
+    from pam_driver.executors import ShutdownWatchdog
+    rclpy.init()
+    watchdog = ShutdownWatchdog(rclpy.get_default_context(), grace=0.5)
+    watchdog.arm()                     # the context stays up: only arm() can start the countdown
+    print('armed', flush=True)
+    ctypes.PyDLL(None).sleep(30)       # hung, GIL held
+''')
+
+
+def test_the_watchdog_armed_without_a_shutdown_still_fires(ros_domain):
+    process = subprocess.Popen([sys.executable, '-c', WATCHDOG_ARMED], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    out, err = process.communicate(timeout=20)
+    assert out.strip() == 'armed'
+    assert process.returncode == 1 and 'Timeout' in err and '<module>' in err, err
+
+
+def test_sigusr1_prints_the_stacks_and_the_node_runs_on(ros_domain):
+    """`kill -USR1` on a node started by run_node prints every thread's stack (stack_dump),
+    the main thread's in the spin; the node runs on and still stops cleanly on Ctrl-C."""
+    import re
+    import time
+    from pam_driver.stack_dump import STACK_DUMP_SIGNAL
+    node = HANGING.replace('stop=stop_that_hangs', 'stop=None')
+    process = subprocess.Popen([sys.executable, '-c', node], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    assert process.stdout.readline().strip() == 'spinning'
+    process.send_signal(STACK_DUMP_SIGNAL)
+    time.sleep(1.0)
+    assert process.poll() is None, 'SIGUSR1 ended the node'
+    start = time.monotonic()
+    process.send_signal(signal.SIGINT)        # the node is idle: no callback runs any more
+    out, err = process.communicate(timeout=30)
+    assert process.returncode == 0, err
+    assert time.monotonic() - start < 3.0     # SPIN_SLICE + the shutdown, on a loaded machine
+    assert re.search(r'Current thread 0x[0-9a-f]+ \(most recent call first\):\n'
+                     r'(  File .*\n)*?  File ".*executors\.py", line \d+ in spin\n', err), err
+    assert re.search(r'^Thread 0x[0-9a-f]+ ', err, flags=re.MULTILINE), err   # the other threads
+
+
+def test_a_second_ctrl_c_interrupts_a_node_that_does_not_stop(ros_domain):
+    """StopSignals: the first Ctrl-C asks for a stop; a second one raises KeyboardInterrupt
+    where the node is (here in a stop that would hang), well before the watchdog's grace."""
+    import time
+    from pam_driver.executors import SHUTDOWN_GRACE
+    process = subprocess.Popen([sys.executable, '-c', HANGING], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    assert process.stdout.readline().strip() == 'spinning'
+    process.send_signal(signal.SIGINT)
+    time.sleep(1.0)
+    assert process.poll() is None                  # in stop_that_hangs
+    start = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    out, err = process.communicate(timeout=30)
+    assert time.monotonic() - start < SHUTDOWN_GRACE - 1.0
+    assert process.returncode == -signal.SIGINT, err   # an uncaught KeyboardInterrupt's exit
+    assert 'KeyboardInterrupt' in err and 'stop_that_hangs' in err and 'Timeout' not in err, err
