@@ -81,9 +81,13 @@ def spin(executor, stop: StopSignals, until: Future | None = None, context=None)
     ExternalShutdownException: catch it in main())."""
     context = context if context is not None else executor.context
     until = until if until is not None else Future()       # never completes
+    events = is_events_executor(executor)
     while context.ok() and stop.requested is None and not until.done():
         try:
-            executor.spin_until_future_complete(until, timeout_sec=SPIN_SLICE)
+            if events:
+                executor.spin_until_future_complete(until, timeout_sec=SPIN_SLICE)
+            else:   # rclpy's Executor adds a done callback to `until` per call: not in a loop
+                executor.spin_once(timeout_sec=SPIN_SLICE)
         except ExternalShutdownException:
             break
         except RuntimeError:

@@ -183,3 +183,33 @@ def test_a_second_ctrl_c_interrupts_a_node_that_does_not_stop(ros_domain):
     assert time.monotonic() - start < SHUTDOWN_GRACE - 1.0
     assert process.returncode == -signal.SIGINT, err   # an uncaught KeyboardInterrupt's exit
     assert 'KeyboardInterrupt' in err and 'stop_that_hangs' in err and 'Timeout' not in err, err
+
+
+IDLE = textwrap.dedent('''
+    import sys
+    from rclpy.node import Node
+    from pam_driver.executors import run_node
+
+    class Idle(Node):
+        def __init__(self):
+            super().__init__('idle_test_node')
+            print('started', flush=True)
+
+    sys.exit(run_node(Idle, 'idle_test_node', args=sys.argv))
+''')
+
+
+def test_a_node_on_simulated_time_stops_on_ctrl_c_too(ros_domain):
+    """use_sim_time: rclpy's default executor (spun with spin_once slices), no /clock, no
+    callback at all: Ctrl-C still stops it at once, cleanly."""
+    import time
+    process = subprocess.Popen(
+        [sys.executable, '-c', IDLE, '--ros-args', '-p', 'use_sim_time:=true'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    assert process.stdout.readline().strip() == 'started'
+    time.sleep(1.0)
+    start = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    out, err = process.communicate(timeout=30)
+    assert process.returncode == 0, err
+    assert time.monotonic() - start < 3.0
