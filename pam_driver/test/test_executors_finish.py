@@ -1,10 +1,15 @@
-"""run_node: a finite node's finish() (bag_record closing its bag) is not cut short by a second
-Ctrl-C: a real process, real signals."""
+"""run_node's stop, on real processes and real signals: a finite node's finish() (bag_record
+closing its bag) is not cut short by a second Ctrl-C; a node that hangs at shutdown (asleep, or
+blocking with the GIL held) exits with its stacks (ShutdownWatchdog); SIGUSR1 prints the stacks
+of a running node; a second Ctrl-C interrupts a node that does not stop; a node on simulated time
+(rclpy's default executor) stops at once."""
 
 import signal
 import subprocess
 import sys
 import textwrap
+
+import pytest
 
 from pam_driver.testing import child_env
 
@@ -46,35 +51,53 @@ def test_a_second_ctrl_c_does_not_cut_finish_short(ros_domain):
     assert 'finished' in out and 'KeyboardInterrupt' not in err
 
 
-HANGING = textwrap.dedent('''
-    import sys, time
-    from rclpy.node import Node
-    from pam_driver.executors import run_node
+def spinning_node(stop_body: str) -> str:
+    """A node that prints 'spinning' once spinning, then idles; its stop hook runs stop_body."""
+    return textwrap.dedent('''
+        import ctypes, sys, time
+        from rclpy.node import Node
+        from pam_driver.executors import run_node
 
-    class Hanging(Node):
-        def __init__(self):
-            super().__init__('hanging_test_node')
-            self.timer = self.create_timer(0.05, self.spinning)
+        class Spinning(Node):
+            def __init__(self):
+                super().__init__('spinning_test_node')
+                self.timer = self.create_timer(0.05, self.spinning)
 
-        def spinning(self):
-            self.destroy_timer(self.timer)
-            print('spinning', flush=True)
+            def spinning(self):
+                self.destroy_timer(self.timer)
+                print('spinning', flush=True)
 
-    def stop_that_hangs(node):
-        time.sleep(60)                               # a shutdown that never completes
+        def stop_that_hangs(node):
+            STOP_BODY
 
-    sys.exit(run_node(Hanging, 'hanging_test_node', stop=stop_that_hangs))
-''')
+        sys.exit(run_node(Spinning, 'spinning_test_node', stop=stop_that_hangs))
+    ''').replace('STOP_BODY', stop_body)
 
 
-def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain):
+HANGING = spinning_node('time.sleep(60)')           # a shutdown that never completes
+# blocks in C *holding the GIL* (PyDLL does not release it), as a deadlock between the GIL and a
+# lock in a C extension would: no Python thread runs any more
+GIL_HANG = spinning_node('ctypes.PyDLL(None).sleep(60)')
+IDLE_AT_STOP = spinning_node('pass')
+
+
+def start_spinning(script: str, ros_domain, *args) -> subprocess.Popen:
+    """The script as a process, once it printed its first line ('spinning' / 'started')."""
+    process = subprocess.Popen([sys.executable, '-c', script, *args], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
+    assert process.stdout.readline().strip() in ('spinning', 'started')
+    return process
+
+
+@pytest.mark.parametrize('script', [HANGING, GIL_HANG], ids=['sleeping', 'gil_held'])
+def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain, script):
     """ShutdownWatchdog: SHUTDOWN_GRACE after Ctrl-C the hung process prints its threads'
-    stacks (naming where it hangs) and exits with code 1, instead of waiting for SIGKILL."""
+    stacks (naming where it hangs) and exits with code 1, instead of waiting for SIGKILL. Armed
+    by the main thread when the stop begins: also when the stop blocks every Python thread at
+    once (GIL held)."""
     import time
     from pam_driver.executors import SHUTDOWN_GRACE
-    process = subprocess.Popen([sys.executable, '-c', HANGING], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
-    assert process.stdout.readline().strip() == 'spinning'
+    process = start_spinning(script, ros_domain)
     start = time.monotonic()
     process.send_signal(signal.SIGINT)
     out, err = process.communicate(timeout=30)
@@ -82,46 +105,6 @@ def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain):
     assert process.returncode == 1, err
     assert SHUTDOWN_GRACE - 0.5 < took < SHUTDOWN_GRACE + 5.0, took
     assert 'Timeout' in err and 'stop_that_hangs' in err, err
-
-
-GIL_HANG = textwrap.dedent('''
-    import ctypes, sys
-    from rclpy.node import Node
-    from pam_driver.executors import run_node
-
-    class Spinning(Node):
-        def __init__(self):
-            super().__init__('gil_hang_test_node')
-            self.timer = self.create_timer(0.05, self.spinning)
-
-        def spinning(self):
-            self.destroy_timer(self.timer)
-            print('spinning', flush=True)
-
-    def deadlocked(node):
-        # blocks in C *holding the GIL* (PyDLL does not release it), as a deadlock between the
-        # GIL and a lock in a C extension would: no Python thread runs any more
-        ctypes.PyDLL(None).sleep(60)
-
-    sys.exit(run_node(Spinning, 'gil_hang_test_node', stop=deadlocked))
-''')
-
-
-def test_a_node_deadlocked_with_the_gil_held_at_shutdown_exits_with_its_stacks(ros_domain):
-    """The watchdog is armed when the stop begins, by the main thread: a stop that blocks every
-    Python thread at once (GIL held) still ends SHUTDOWN_GRACE later with the stacks."""
-    import time
-    from pam_driver.executors import SHUTDOWN_GRACE
-    process = subprocess.Popen([sys.executable, '-c', GIL_HANG], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
-    assert process.stdout.readline().strip() == 'spinning'
-    start = time.monotonic()
-    process.send_signal(signal.SIGINT)
-    out, err = process.communicate(timeout=30)
-    took = time.monotonic() - start
-    assert process.returncode == 1, err
-    assert took < SHUTDOWN_GRACE + 5.0, took
-    assert 'Timeout' in err and 'deadlocked' in err, err
 
 
 WATCHDOG_ARMED = textwrap.dedent('''
@@ -149,10 +132,7 @@ def test_sigusr1_prints_the_stacks_and_the_node_runs_on(ros_domain):
     import re
     import time
     from pam_driver.stack_dump import STACK_DUMP_SIGNAL
-    node = HANGING.replace('stop=stop_that_hangs', 'stop=None')
-    process = subprocess.Popen([sys.executable, '-c', node], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
-    assert process.stdout.readline().strip() == 'spinning'
+    process = start_spinning(IDLE_AT_STOP, ros_domain)
     process.send_signal(STACK_DUMP_SIGNAL)
     time.sleep(1.0)
     assert process.poll() is None, 'SIGUSR1 ended the node'
@@ -171,9 +151,7 @@ def test_a_second_ctrl_c_interrupts_a_node_that_does_not_stop(ros_domain):
     where the node is (here in a stop that would hang), well before the watchdog's grace."""
     import time
     from pam_driver.executors import SHUTDOWN_GRACE
-    process = subprocess.Popen([sys.executable, '-c', HANGING], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
-    assert process.stdout.readline().strip() == 'spinning'
+    process = start_spinning(HANGING, ros_domain)
     process.send_signal(signal.SIGINT)
     time.sleep(1.0)
     assert process.poll() is None                  # in stop_that_hangs
@@ -203,10 +181,7 @@ def test_a_node_on_simulated_time_stops_on_ctrl_c_too(ros_domain):
     """use_sim_time: rclpy's default executor (spun with spin_once slices), no /clock, no
     callback at all: Ctrl-C still stops it at once, cleanly."""
     import time
-    process = subprocess.Popen(
-        [sys.executable, '-c', IDLE, '--ros-args', '-p', 'use_sim_time:=true'],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env(ros_domain))
-    assert process.stdout.readline().strip() == 'started'
+    process = start_spinning(IDLE, ros_domain, '--ros-args', '-p', 'use_sim_time:=true')
     time.sleep(1.0)
     start = time.monotonic()
     process.send_signal(signal.SIGTERM)
