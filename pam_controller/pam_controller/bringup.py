@@ -14,8 +14,9 @@ forwards it to our stdout (and, with --log-dir, writes the raw line to DIR/<node
 Stopping: on SIGINT / SIGTERM / SIGHUP (Ctrl-C) or at the end of --duration every child gets
 SIGINT (to its process group); children still running SIGTERM_AFTER later get SIGTERM (as ros2
 launch does: a node may miss a SIGINT that arrives while it is still importing), and SIGKILL after
-STOP_TIMEOUT. A second Ctrl-C kills at once. If pam-bringup itself is killed, the children get
-SIGTERM (Linux parent-death signal).
+STOP_TIMEOUT, just after SIGUSR1 (a PAM node prints its threads' stacks into the log: where it
+hung; pam_driver.stack_dump). A second Ctrl-C kills at once. If pam-bringup itself is killed, the
+children get SIGTERM (Linux parent-death signal).
 
 Exit code: 0 after a requested stop when every child exited cleanly (0, or ended by our SIGINT /
 SIGTERM; never after a SIGKILL); 1 when a child died while running (which one, and its exit code,
