@@ -102,9 +102,10 @@ def spin(executor, stop: StopSignals, until: Future | None = None, context=None)
 
 
 def shuts_down(context, within: float = SHUTDOWN_SETTLE) -> bool:
-    """True if the context is shut down or goes down within `within` s. After Ctrl-C the
-    executor can fail (a callback torn down under it) a moment before rclpy's signal handling
-    has marked the context shut down: an error then is part of the shutdown, not a failure."""
+    """True if the context is shut down or goes down within `within` s. When the context is
+    shut down under a spinning executor (by rclpy's signal handlers, which run_node no longer
+    installs, or by a node's own rclpy.shutdown()), the executor can fail a moment before the
+    context reads as shut down: an error then is part of the shutdown, not a failure."""
     end = time.monotonic() + within
     while context.ok():
         if time.monotonic() >= end:
