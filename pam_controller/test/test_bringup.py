@@ -53,12 +53,12 @@ def process_exists(pid: int, name: str) -> bool:
     return name.encode() in cmdline
 
 
-# A node leaving rclpy's EventsExecutor while a message is being delivered can raise this from
+# A node leaving rclpy's EventsExecutor while a message is being delivered could raise this from
 # pam_driver.executors.spin() and exit 1 (seen about once in 8 full-stack stops, and once in a
-# clean-clone CI run after that); pam-bringup rightly reports it. spin() and run_node() now wait
-# up to SHUTDOWN_SETTLE (1 s) for the context to go down before calling it a failure, which
-# covers the error coming just before rclpy marks the context shut down; if the race has another
-# form it is still a node-side issue, not pam-bringup's: expected to fail, by signature.
+# clean-clone CI run after that), when rclpy's signal handlers shut the context down from their
+# own thread and raised KeyboardInterrupt inside callbacks. run_node now stops between executor
+# slices itself (StopSignals), which should end it; if it still shows, it is a node-side issue,
+# not pam-bringup's (which rightly reports it): expected to fail, by signature.
 EVENTS_SHUTDOWN_RACE = "RuntimeError: Unable to convert call argument '0' to Python object"
 
 

@@ -21,7 +21,6 @@ class ReadAhead:
         if capacity < 1 or batch < 1:
             raise ValueError(f'capacity and batch must be >= 1, got {capacity}, {batch}')
         self.batch = min(batch, capacity)
-        self.capacity = capacity
         self._queue: queue.Queue = queue.Queue(maxsize=max(1, capacity // self.batch))
         self._current: list = []
         self._pos = 0

@@ -1,5 +1,6 @@
-"""pam_driver.executors.shuts_down: an executor error right after Ctrl-C counts as part of the
-shutdown only if the ROS context really goes down (real rclpy contexts, no ROS graph needed)."""
+"""pam_driver.executors.shuts_down: an executor error while the context is being shut down
+counts as part of the shutdown only if the ROS context really goes down (real rclpy contexts, no
+ROS graph needed)."""
 
 import threading
 import time
