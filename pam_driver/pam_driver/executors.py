@@ -11,9 +11,10 @@ a thread of their own and raise KeyboardInterrupt wherever the main thread happe
 inside a subscription callback run by the EventsExecutor's C++ loop); at that moment, rarely, a
 node hung for good (pi_node, then ukf_node, in CI: deaf to SIGINT and SIGTERM, killed) or failed
 with "Unable to convert call argument". StopSignals instead only records the request; the spin
-loop sees it within SPIN_SLICE and the main thread shuts the context down itself, between two
-slices, outside any callback. A second signal raises KeyboardInterrupt (a node that does not stop
-is interrupted where it is).
+loop sees it within SPIN_SLICE and returns, and the main thread stops the node (its stop hook,
+e.g. driver_node's safe output, with ROS still up) and then shuts the context down itself,
+outside any callback. A second signal raises KeyboardInterrupt (a node that does not stop is
+interrupted where it is).
 
 EventsExecutor timers do not follow /clock under use_sim_time: nodes that run on simulated time
 must ask for the default executor (events=False).
@@ -76,8 +77,8 @@ class StopSignals:
 
 
 def spin(executor, stop: StopSignals, until: Future | None = None, context=None) -> None:
-    """Execute callbacks in SPIN_SLICE slices until `until` completes (returns), or a stop is
-    requested (the context is then shut down here) or the context went down (both raise
+    """Execute callbacks in SPIN_SLICE slices until `until` completes or a stop is requested
+    (returns; the caller shuts the context down), or the context went down (raises
     ExternalShutdownException: catch it in main())."""
     context = context if context is not None else executor.context
     until = until if until is not None else Future()       # never completes
@@ -95,10 +96,8 @@ def spin(executor, stop: StopSignals, until: Future | None = None, context=None)
             # context shuts down under it: that is a shutdown, not a failure.
             if not shuts_down(context):
                 raise
-    if until.done() and stop.requested is None:
-        return
-    context.try_shutdown()
-    raise ExternalShutdownException()
+    if not context.ok():
+        raise ExternalShutdownException()
 
 
 def shuts_down(context, within: float = SHUTDOWN_SETTLE) -> bool:
@@ -168,13 +167,14 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     """The main() of a PAM node: init, build the node, spin, shut down.
 
     Returns the exit code: 0 after Ctrl-C/SIGTERM, 2 when the node's configuration is invalid
-    (ConfigError, printed as one line). Ctrl-C/SIGTERM (StopSignals) stops the spin within
-    SPIN_SLICE and shuts the context down; one while the node is still starting stops it once
-    started; a second one interrupts (KeyboardInterrupt) wherever the node is.
+    (ConfigError, printed as one line). Ctrl-C/SIGTERM (StopSignals) ends the spin within
+    SPIN_SLICE; one while the node is still starting stops it once started; a second one
+    interrupts (KeyboardInterrupt) wherever the node is.
     The executor is an EventsExecutor unless the node runs on simulated time.
-    A node with a `finished` Future runs until it completes (or Ctrl-C), and its `finish()` gives
-    the exit code; further SIGINT/SIGTERM are ignored while it finishes. `stop(node)`, if given,
-    runs before the node is destroyed. Any other node must be gone SHUTDOWN_GRACE s after its
+    A node with a `finished` Future runs until it completes (or Ctrl-C: ROS is then shut down
+    first), and its `finish()` gives the exit code; further SIGINT/SIGTERM are ignored while it
+    finishes. `stop(node)`, if given, runs with ROS still up (its threads may still publish),
+    then the node is destroyed and ROS shut down. Any other node must be gone SHUTDOWN_GRACE s after its
     spin ends or the context goes down (ShutdownWatchdog). SIGUSR1 prints every thread's stack
     (stack_dump).
     """
@@ -201,6 +201,8 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
             if not shuts_down(context):
                 raise
         if getattr(node, 'finished', None) is not None:   # also after an early Ctrl-C
+            if stop_signals.requested is not None:
+                context.try_shutdown()     # stopped by Ctrl-C: it finishes with ROS down
             watchdog.disarm()
             with interrupts_deferred():
                 return node.finish()

@@ -67,10 +67,10 @@ def spinning_node(stop_body: str) -> str:
                 self.destroy_timer(self.timer)
                 print('spinning', flush=True)
 
-        def stop_that_hangs(node):
+        def stop_hook(node):
             STOP_BODY
 
-        sys.exit(run_node(Spinning, 'spinning_test_node', stop=stop_that_hangs))
+        sys.exit(run_node(Spinning, 'spinning_test_node', stop=stop_hook))
     ''').replace('STOP_BODY', stop_body)
 
 
@@ -78,7 +78,7 @@ HANGING = spinning_node('time.sleep(60)')           # a shutdown that never comp
 # blocks in C *holding the GIL* (PyDLL does not release it), as a deadlock between the GIL and a
 # lock in a C extension would: no Python thread runs any more
 GIL_HANG = spinning_node('ctypes.PyDLL(None).sleep(60)')
-IDLE_AT_STOP = spinning_node('pass')
+IDLE_AT_STOP = spinning_node("print('ROS up at stop:', node.context.ok(), flush=True)")
 
 
 def start_spinning(script: str, ros_domain, *args) -> subprocess.Popen:
@@ -104,7 +104,7 @@ def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain, script)
     took = time.monotonic() - start
     assert process.returncode == 1, err
     assert SHUTDOWN_GRACE - 0.5 < took < SHUTDOWN_GRACE + 5.0, took
-    assert 'Timeout' in err and 'stop_that_hangs' in err, err
+    assert 'Timeout' in err and 'stop_hook' in err, err
 
 
 WATCHDOG_ARMED = textwrap.dedent('''
@@ -141,6 +141,7 @@ def test_sigusr1_prints_the_stacks_and_the_node_runs_on(ros_domain):
     out, err = process.communicate(timeout=30)
     assert process.returncode == 0, err
     assert time.monotonic() - start < 3.0     # SPIN_SLICE + the shutdown, on a loaded machine
+    assert 'ROS up at stop: True' in out      # the stop hook (driver_node's safe output) first
     assert re.search(r'Current thread 0x[0-9a-f]+ \(most recent call first\):\n'
                      r'(  File .*\n)*?  File ".*executors\.py", line \d+ in spin\n', err), err
     assert re.search(r'^Thread 0x[0-9a-f]+ ', err, flags=re.MULTILINE), err   # the other threads
@@ -154,13 +155,13 @@ def test_a_second_ctrl_c_interrupts_a_node_that_does_not_stop(ros_domain):
     process = start_spinning(HANGING, ros_domain)
     process.send_signal(signal.SIGINT)
     time.sleep(1.0)
-    assert process.poll() is None                  # in stop_that_hangs
+    assert process.poll() is None                  # in stop_hook
     start = time.monotonic()
     process.send_signal(signal.SIGTERM)
     out, err = process.communicate(timeout=30)
     assert time.monotonic() - start < SHUTDOWN_GRACE - 1.0
     assert process.returncode == -signal.SIGINT, err   # an uncaught KeyboardInterrupt's exit
-    assert 'KeyboardInterrupt' in err and 'stop_that_hangs' in err and 'Timeout' not in err, err
+    assert 'KeyboardInterrupt' in err and 'stop_hook' in err and 'Timeout' not in err, err
 
 
 IDLE = textwrap.dedent('''
