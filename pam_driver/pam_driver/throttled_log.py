@@ -1,0 +1,60 @@
+"""ThrottledLog: one kind of log line on a fast (1 kHz) path, throttled and counted.
+
+    bad_command = ThrottledLog(node.get_logger(), period=1.0)
+    ...
+    bad_command(f'valve command {u} V out of range')     # in the 1 kHz callback
+
+The first occurrence is logged at once; later ones at most once per `period` seconds (monotonic
+clock), each logged line saying how many were left out since the previous one:
+'... (37 more like this in the last 1.0 s, not logged)'. `count` (all occurrences) and
+`suppressed` (those not logged) are for /diagnostics: suppressed_total() sums a node's logs.
+Thread-safe (a sampling thread and the executor may both log). No ROS in here: the logger is
+anything with info/warning/error methods (rclpy's RcutilsLogger, logging.Logger).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, Iterable
+
+#: The /diagnostics key of suppressed_total().
+SUPPRESSED_KEY = 'log lines suppressed (throttled)'
+
+
+class ThrottledLog:
+    """Logs the first occurrence, then at most one line per period with the count left out."""
+
+    def __init__(self, logger, period: float = 1.0, level: str = 'warning',
+                 clock: Callable[[], float] = time.monotonic):
+        if not period > 0.0:
+            raise ValueError(f'throttle period must be > 0 s, got {period!r}')
+        self._log = getattr(logger, level)
+        self.period = period
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._last: float | None = None     # clock time of the last line logged
+        self._left_out = 0                  # occurrences not logged since that line
+        self.count = 0
+        self.suppressed = 0
+
+    def __call__(self, text: str) -> bool:
+        """One occurrence; True if it was logged."""
+        with self._lock:
+            now = self._clock()
+            self.count += 1
+            if self._last is not None and now - self._last < self.period:
+                self._left_out += 1
+                self.suppressed += 1
+                return False
+            if self._left_out:
+                text += (f' ({self._left_out} more like this in the last '
+                         f'{now - self._last:.1f} s, not logged)')
+            self._last, self._left_out = now, 0
+        self._log(text)
+        return True
+
+
+def suppressed_total(logs: Iterable[ThrottledLog]) -> int:
+    """Lines not logged by these throttled logs, together."""
+    return sum(log.suppressed for log in logs)
