@@ -21,7 +21,8 @@ children get SIGTERM (Linux parent-death signal).
 Exit code: 0 after a requested stop when every child exited cleanly (0, or ended by our SIGINT /
 SIGTERM; never after a SIGKILL); 1 when a child died while running (which one, and its exit code,
 is logged; the others are then stopped) or did not stop cleanly; 2 on a usage or set-up error
-(missing executable, unreadable params file), before anything is started.
+(missing executable; a params file missing, unreadable or malformed: one line naming the file
+and the line, the check every node makes), before anything is started.
 
 No busy loops: the main thread sleeps in select() on a self-pipe that signal.set_wakeup_fd and
 the per-child waiter threads write to.
@@ -51,6 +52,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from pam_driver.executables import executable_candidates, find_executable
+from pam_driver.params_files import check_params_file, ros_args_problem
 from pam_driver.stack_dump import STACK_DUMP_SIGNAL
 
 PROG = 'pam-bringup'
@@ -123,23 +125,9 @@ def _key_pattern(key: str) -> re.Pattern:
 
 
 def section_keys(path: Path) -> list[str]:
-    """Top-level keys of a params file; raises ValueError with a readable message."""
-    import yaml
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ValueError(f'cannot read the params file {path}: {exc.strerror}') from exc
-    except yaml.YAMLError as exc:
-        raise ValueError(f'the params file {path} is not valid YAML: {exc}') from exc
-    if data is None:
-        return []
-    if not isinstance(data, dict):
-        raise ValueError(f'the params file {path} must map node names to '
-                         '{ros__parameters: {...}} sections')
-    for key, value in data.items():
-        if not isinstance(value, dict) or 'ros__parameters' not in value:
-            raise ValueError(f"the params file {path}: section '{key}' has no ros__parameters")
-    return [str(k) for k in data]
+    """The node sections of a params file (nested keys joined with '/'); raises ValueError
+    (ParamsFileError: one line, with the line number where there is one)."""
+    return check_params_file(path)
 
 
 def sections_for(node_fqn: str, keys: list[str]) -> list[str]:
@@ -582,9 +570,11 @@ def main(argv=None) -> int:
     nodes = stack(args)
 
     params_file = (args.params_file or default_params_file()).expanduser().resolve()
-    if not params_file.is_file():
-        return error(f'params file {params_file} not found'
-                     + ('' if args.params_file else ' (run `make setup`, or pass --params-file)'))
+    # the nodes' own check (pam_driver.params_files, rcl's parse included), before any start
+    problem = ros_args_problem([PROG, '--ros-args', '--params-file', str(params_file)])
+    if problem is not None:
+        missing = not (args.params_file or params_file.exists())
+        return error(problem + (' (run `make setup`, or pass --params-file)' if missing else ''))
     try:
         keys = section_keys(params_file)
     except ValueError as exc:

@@ -46,7 +46,7 @@ from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
 from pam_driver.node_params import cli_preamble
 from pam_driver.executors import run_node
-from pam_driver.node_params import declare_parameters, unknown_overrides
+from pam_driver.node_params import declare_parameters
 from pam_driver.timing import RateStatistics
 
 NODE_NAME = 'driver_node'
@@ -79,9 +79,6 @@ class DriverNode(Node):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
         values = declare_parameters(self, PARAMETERS)
-        for name in unknown_overrides(self, PARAMETERS):
-            self.get_logger().warning(f"ignoring unknown parameter '{name}' (see "
-                                      'driver_node --help)')
         self.config = build_config(values)
         self.cal = self.config['calibration']
         self._frame_id = self.config['frame_id']

@@ -167,9 +167,10 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     """The main() of a PAM node: init, build the node, spin, shut down.
 
     Returns the exit code: 0 after Ctrl-C/SIGTERM, 2 when the node's configuration is invalid
-    (ConfigError, printed as one line). Ctrl-C/SIGTERM (StopSignals) ends the spin within
-    SPIN_SLICE; one while the node is still starting stops it once started; a second one
-    interrupts (KeyboardInterrupt) wherever the node is.
+    (ConfigError; or a bad params file or -p rule, found before rclpy.init by params_files),
+    printed as one line. Ctrl-C/SIGTERM (StopSignals) ends the spin within SPIN_SLICE; one while
+    the node is still starting stops it once started; a second one interrupts
+    (KeyboardInterrupt) wherever the node is.
     The executor is an EventsExecutor unless the node runs on simulated time.
     A node with a `finished` Future runs until it completes (or Ctrl-C: ROS is then shut down
     first), and its `finish()` gives the exit code; further SIGINT/SIGTERM are ignored while it
@@ -179,6 +180,10 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     (stack_dump).
     """
     from .node_params import ConfigError
+    from .params_files import report_ros_args_problem
+    code = report_ros_args_problem(sys.argv if args is None else args, name)
+    if code is not None:            # a bad params file or -p rule: one line, before rclpy.init
+        return code
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_signals = StopSignals()
     stop_signals.install()

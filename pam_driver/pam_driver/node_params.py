@@ -141,11 +141,16 @@ def wants_help(argv: Sequence[str]) -> bool:
 
 def cli_preamble(argv: Sequence[str], prog: str, usage: str) -> int | None:
     """Before rclpy starts: --help prints `usage` (exit code 0); an argument that is not a ROS
-    argument is an error (exit code 2). None: go on."""
+    argument, a bad params file or -p rule (params_files) is an error (exit code 2).
+    None: go on."""
     import sys
     if wants_help(argv):
         sys.stdout.write(usage)
         return 0
+    from .params_files import report_ros_args_problem
+    code = report_ros_args_problem(argv, prog)
+    if code is not None:
+        return code
     from rclpy.utilities import remove_ros_args
     leftover = remove_ros_args(list(argv))[1:]
     if leftover:
@@ -224,15 +229,27 @@ def unknown_overrides(node, specs: Sequence[ParamSpec]) -> list[str]:
                   if name not in known and not name.startswith('qos_overrides.'))
 
 
+def unknown_parameter_warning(name: str, specs: Sequence[ParamSpec], prog: str) -> str:
+    """The warning about an override no spec declares, with the closest known name."""
+    import difflib
+    close = difflib.get_close_matches(name, [spec.name for spec in specs], n=1, cutoff=0.6)
+    hint = f": did you mean '{close[0]}'?" if close else ''
+    return f"ignoring unknown parameter '{name}'{hint} (see {prog} --help)"
+
+
 def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
-    """Declare every spec on the node with its descriptor and return the values.
+    """Declare every spec on the node with its descriptor and return the values; call it once,
+    with the node's whole table.
 
     A value of the wrong type (an override from the command line or a params file) becomes a
     ConfigError naming the parameter, with a hint (e.g. 'write 1000.0'); a value outside the
-    descriptor's range a ConfigError naming the range.
+    descriptor's range a ConfigError naming the range. An override no spec declares (a typo)
+    is logged as a warning naming the closest known name.
     """
     import rclpy.exceptions
     from rclpy.parameter import Parameter
+    for name in unknown_overrides(node, specs):     # first: a typo may explain an error below
+        node.get_logger().warning(unknown_parameter_warning(name, specs, node.get_name()))
     values = {}
     for spec in specs:
         # an empty list has no element type: declare such a parameter by its type instead

@@ -74,7 +74,7 @@ from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.executors import run_node
-from pam_driver.node_params import cli_preamble, declare_parameters, unknown_overrides
+from pam_driver.node_params import cli_preamble, declare_parameters
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_driver.timing import DeadlineSchedule, RateStatistics
 
@@ -127,9 +127,6 @@ class SimNode(Node):
     def configure(self) -> None:
         """Declare and check every parameter, build the plant and the ROS interfaces."""
         values = declare_parameters(self, PARAMETERS)
-        for name in unknown_overrides(self, PARAMETERS):
-            self.get_logger().warning(f"ignoring unknown parameter '{name}' (see "
-                                      'sim_node --help)')
         if self.get_parameter('use_sim_time').value:
             self.get_logger().warning('use_sim_time is true: ignored, the simulated rig runs on '
                                       'the system clock (it publishes /clock itself with '
