@@ -327,3 +327,39 @@ def installed_config(name: str, package: str = 'pam_driver') -> str:
     except Exception as exc:  # noqa: BLE001
         pytest.fail(f'cannot find the installed config {name}: {exc}')
     return str(share)
+
+
+# ---------------------------------------------------------------------------- params files
+#: Params files rcl refuses, by kind: (text, the line the one-line error names); text None: the
+#: file does not exist. mixed_type_list is judged by rcl's own parse (pam_driver.params_files).
+MALFORMED_PARAMS_FILES = {
+    'unclosed_bracket': ('/**:\n  ros__parameters:\n    safe_command: [5.5, 5.5\n', 3),
+    'tab_indentation': ('/**:\n  ros__parameters:\n\tkp_angle: 30.0\n', 3),
+    'list_under_ros__parameters': ('/**:\n  ros__parameters:\n    - kp_angle\n    - 30.0\n', 3),
+    'mixed_type_list': ('/**:\n  ros__parameters:\n    safe_command: [5.5,\n      5]\n', 4),
+    'missing': (None, None),
+}
+
+
+def malformed_params_file(folder: Path, kind: str) -> tuple[Path, int | None]:
+    """MALFORMED_PARAMS_FILES[kind] written to folder/<kind>.yaml (not for 'missing'): the path
+    and the line the error must name."""
+    text, line = MALFORMED_PARAMS_FILES[kind]
+    path = folder / f'{kind}.yaml'
+    if text is not None:
+        path.write_text(text)
+    return path, line
+
+
+def assert_params_file_error(process: NodeProcess, prefix: str, path: Path,
+                             line: int | None) -> None:
+    """The process refused the params file `path`: exit code 2, and stderr exactly one line,
+    `<prefix> error: params file <path>: ...`, ending in `(line N)` when line is given."""
+    code = process.wait_exit(STARTUP_TIMEOUT)
+    err = process.stderr
+    assert code == 2, f'exit code {code}; stderr:\n{err}'
+    lines = err.splitlines()
+    assert len(lines) == 1 and 'Traceback' not in err, f'not one line:\n{err}'
+    assert lines[0].startswith(f'{prefix} error: params file {path}: '), lines[0]
+    if line is not None:
+        assert lines[0].endswith(f'(line {line})'), lines[0]

@@ -1,0 +1,24 @@
+"""ukf_node's params files and parameter names (pam_driver.params_files, declare_parameters):
+a malformed or missing params file stops it with exit code 2 and one line on stderr naming the
+file (and the line); an unknown parameter name is a warning naming the closest known one."""
+
+from __future__ import annotations
+
+import pytest
+
+from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT, assert_params_file_error,
+                                malformed_params_file)
+
+
+@pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
+def test_malformed_params_file_is_one_line(node_process, tmp_path, kind):
+    path, line = malformed_params_file(tmp_path, kind)
+    ukf = node_process('ukf_node', 'pam_estimator', '--params-file', str(path))
+    assert_params_file_error(ukf, '[ukf_node]', path, line)
+
+
+def test_unknown_parameter_name_warns(node_process):
+    ukf = node_process('ukf_node', 'pam_estimator', '-p', 'nis_gat:=3.0')
+    expected = ("ignoring unknown parameter 'nis_gat': did you mean 'nis_gate'? "
+                '(see ukf_node --help)')
+    ukf.wait_for(lambda: expected in ukf.stderr, STARTUP_TIMEOUT, 'the unknown-name warning')
