@@ -9,15 +9,14 @@ from __future__ import annotations
 import pytest
 
 from pam_controller.bringup import section_keys, sections_for
-from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT, assert_params_file_error,
+from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
+                                assert_node_refuses_params_file, assert_params_file_error,
                                 malformed_params_file)
 
 
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
 def test_pi_node_malformed_params_file_is_one_line(node_process, tmp_path, kind):
-    path, line = malformed_params_file(tmp_path, kind)
-    pi = node_process('pi_node', 'pam_controller', '--params-file', str(path))
-    assert_params_file_error(pi, '[pi_node]', path, line)
+    assert_node_refuses_params_file(node_process, tmp_path, 'pi_node', 'pam_controller', kind)
 
 
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
@@ -30,9 +29,8 @@ def test_bringup_refuses_a_malformed_params_file_before_starting(node_process, t
 
 @pytest.mark.parametrize('node', ['reference_node', 'tracking_report'])
 def test_other_controller_nodes_refuse_through_run_node(node_process, tmp_path, node):
-    path, line = malformed_params_file(tmp_path, 'list_under_ros__parameters')
-    process = node_process(node, 'pam_controller', '--params-file', str(path))
-    assert_params_file_error(process, f'[{node}]', path, line)
+    assert_node_refuses_params_file(node_process, tmp_path, node, 'pam_controller',
+                                    'list_under_ros__parameters')
 
 
 def test_bringup_reads_nested_namespace_sections(tmp_path):

@@ -363,3 +363,53 @@ def assert_params_file_error(process: NodeProcess, prefix: str, path: Path,
     assert lines[0].startswith(f'{prefix} error: params file {path}: '), lines[0]
     if line is not None:
         assert lines[0].endswith(f'(line {line})'), lines[0]
+
+
+def assert_node_refuses_params_file(node_process, folder: Path, node: str, package: str,
+                                    kind: str) -> None:
+    """`node --ros-args --params-file <MALFORMED_PARAMS_FILES[kind]>` exits with code 2 and one
+    line `[node] error: params file ...` (assert_params_file_error)."""
+    path, line = malformed_params_file(folder, kind)
+    process = node_process(node, package, '--params-file', str(path))
+    assert_params_file_error(process, f'[{node}]', path, line)
+
+
+def damage_chunk(mcap, index: int, nbytes: int = 8) -> int:
+    """Flip `nbytes` bytes (in place) inside the compressed records of chunk `index` of the
+    MCAP file `mcap`, at the first place from the chunk's middle on where, without a CRC, the
+    damage goes unnoticed (the issue's corrupted bag): the chunk still decompresses to its
+    uncompressed_size and into complete records, only other ones. Returns the file offset of
+    the first flipped byte."""
+    import io
+
+    from mcap.reader import make_reader
+
+    from .mcap_check import RECORD_HEAD, records
+    mcap = Path(mcap)
+    with mcap.open('rb') as f:
+        chunk = make_reader(f).get_summary().chunk_indexes[index]
+    data = bytearray(mcap.read_bytes())
+    end = chunk.chunk_start_offset + chunk.chunk_length
+    start = end - chunk.compressed_size
+
+    def unpack(compressed: bytes) -> bytes | None:
+        import zstandard
+        try:
+            out = (zstandard.decompress(compressed, max_output_size=chunk.uncompressed_size)
+                   if chunk.compression == 'zstd' else compressed)
+        except zstandard.ZstdError:
+            return None
+        inner = list(records(io.BytesIO(out), len(out)))
+        framed = inner and inner[-1][0] + RECORD_HEAD.size + len(inner[-1][2]) == len(out)
+        return out if len(out) == chunk.uncompressed_size and framed else None
+    original = unpack(bytes(data[start:end]))
+    for at in range(start + chunk.compressed_size // 2, end - nbytes):
+        trial = bytearray(data[start:end])
+        for i in range(at - start, at - start + nbytes):
+            trial[i] ^= 0xFF
+        damaged = unpack(bytes(trial))
+        if damaged is not None and damaged != original:
+            data[start:end] = trial
+            mcap.write_bytes(data)
+            return at
+    raise AssertionError(f'{mcap}: no place in chunk {index} to damage unnoticed by zstd')

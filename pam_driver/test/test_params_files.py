@@ -16,8 +16,8 @@ import pytest
 from pam_driver.node_params import ParamSpec, unknown_parameter_warning
 from pam_driver.params_files import (ParamsFileError, check_params_file, params_files_in,
                                      rcl_problem, ros_args_problem)
-from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT, assert_params_file_error,
-                                malformed_params_file)
+from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
+                                assert_node_refuses_params_file, malformed_params_file)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -66,11 +66,6 @@ def rcl_refuses(path: Path) -> bool:
     except RuntimeError:
         return True
     return False
-
-
-@pytest.fixture(scope='module')
-def files_folder(tmp_path_factory):
-    return tmp_path_factory.mktemp('malformed')
 
 
 def written(tmp_path: Path, name: str, text: str) -> Path:
@@ -167,17 +162,13 @@ def test_unknown_parameter_warning_names_the_closest_name():
 # ---------------------------------------------------------------------------- real processes
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
 @pytest.mark.parametrize('node', ['sim_node', 'driver_node'])
-def test_node_refuses_a_malformed_params_file_in_one_line(node_process, files_folder, node, kind):
-    path, line = malformed_params_file(files_folder, kind)
-    process = node_process(node, 'pam_driver', '--params-file', str(path))
-    assert_params_file_error(process, f'[{node}]', path, line)
+def test_node_refuses_a_malformed_params_file_in_one_line(node_process, tmp_path, node, kind):
+    assert_node_refuses_params_file(node_process, tmp_path, node, 'pam_driver', kind)
 
 
 @pytest.mark.parametrize('node', ['profile_player', 'bag_record', 'bag_play'])
-def test_every_node_refuses_through_run_node(node_process, files_folder, node):
-    path, line = malformed_params_file(files_folder, 'tab_indentation')
-    process = node_process(node, 'pam_driver', '--params-file', str(path))
-    assert_params_file_error(process, f'[{node}]', path, line)
+def test_every_node_refuses_through_run_node(node_process, tmp_path, node):
+    assert_node_refuses_params_file(node_process, tmp_path, node, 'pam_driver', 'tab_indentation')
 
 
 def test_bad_override_rule_is_one_line(node_process):

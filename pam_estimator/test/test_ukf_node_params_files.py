@@ -6,15 +6,13 @@ from __future__ import annotations
 
 import pytest
 
-from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT, assert_params_file_error,
-                                malformed_params_file)
+from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
+                                assert_node_refuses_params_file)
 
 
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
 def test_malformed_params_file_is_one_line(node_process, tmp_path, kind):
-    path, line = malformed_params_file(tmp_path, kind)
-    ukf = node_process('ukf_node', 'pam_estimator', '--params-file', str(path))
-    assert_params_file_error(ukf, '[ukf_node]', path, line)
+    assert_node_refuses_params_file(node_process, tmp_path, 'ukf_node', 'pam_estimator', kind)
 
 
 def test_unknown_parameter_name_warns(node_process):
