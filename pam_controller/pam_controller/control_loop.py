@@ -5,6 +5,9 @@ enable flag and the last feedback stamp. on_feedback(value, stamp_ns) gives the 
 dt comes from consecutive feedback stamps (a dt <= 0 or > dt_max does not update the integral);
 when disabled, or before any reference, the command is the safe value. A new reference mode
 resets the integral of the new mode.
+
+A reference outside the rig's envelope (ENVELOPE: +-25 deg in angle mode, +-3 N m in torque
+mode) is clamped to it and counted (clamped_references); a non-finite one is ignored.
 """
 
 from __future__ import annotations
@@ -16,6 +19,11 @@ from .pi import PiController, PiGains, PiOutput
 
 ANGLE, TORQUE = 0, 1           # pam_interfaces/Reference constants
 MODE_NAMES = {ANGLE: 'angle', TORQUE: 'torque'}
+MODE_UNITS = {ANGLE: 'rad', TORQUE: 'N m'}
+#: The rig's envelope, the largest |reference| per mode (MODEL.md section 1): the joint range
+#: +-25 deg (the paper's), and +-3 N m, within what the muscles can give at psi = 0 (the default
+#: parameters: +3.17 / -3.20 N m with one muscle at P_tank, the other vented to P_out).
+ENVELOPE = {ANGLE: math.radians(25.0), TORQUE: 3.0}
 
 
 class LoopOutput(NamedTuple):
@@ -44,13 +52,15 @@ class ControlLoop:
         self.last_stamp_ns: int | None = None
         self.bad_dt = 0
         self.bad_feedback = 0
+        self.clamped_references = 0
 
     @property
     def controller(self) -> PiController:
         return self.controllers[self.mode]
 
     def set_reference(self, mode: int, value: float) -> str:
-        """Accept a reference; returns a message if it was refused or changed the mode."""
+        """Accept a reference; returns a message if it was refused, clamped to the envelope or
+        changed the mode (a message that starts with 'mode' says only that)."""
         if mode not in MODE_NAMES:
             return f'reference mode {mode} unknown (0 angle, 1 torque): ignored'
         if not math.isfinite(value):
@@ -60,7 +70,14 @@ class ControlLoop:
             message = f'mode {MODE_NAMES[self.mode]} -> {MODE_NAMES[mode]}: integral reset'
             self.mode = mode
             self.controller.reset()
-        self.reference = float(value)
+        limit = ENVELOPE[mode]
+        self.reference = min(max(float(value), -limit), limit)
+        if self.reference != value:
+            self.clamped_references += 1
+            clamp = (f'{MODE_NAMES[mode]} reference {value:g} {MODE_UNITS[mode]} outside the '
+                     f"rig's envelope +-{limit:g}: clamped to {self.reference:g} "
+                     f'({self.clamped_references} so far)')
+            message = f'{clamp}; {message}' if message else clamp
         return message
 
     def set_enabled(self, enabled: bool) -> None:

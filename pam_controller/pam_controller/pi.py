@@ -11,15 +11,24 @@ pushes further into saturation) or back-calculation (the integral is pulled back
 (v_sat - v) dt / T_t). dt comes from the feedback stamps; a dt <= 0 or > dt_max leaves the
 state unchanged (the output is still computed). Units: e in rad (angle mode) or N m (torque
 mode); Kp in V per unit of e, Ki in V per unit of e per second; u, v, I in V.
+
+No intermediate term can become non-finite, whatever the (finite) gains and the error: e is
+bounded to +-ERROR_LIMIT (a NaN error counts as 0), and the proportional term, each integral
+increment and the integral term to +-TERM_LIMIT V, far beyond any saturation (the outputs span
+10 V), so back-calculation never computes inf - inf and a huge error leaves a state that
+recovers by itself. ControlLoop clamps the reference to the rig's envelope before this.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 from numba import njit
 
 ANTI_WINDUP = ('conditional', 'back_calculation')
+ERROR_LIMIT = 1.0e6    # rad or N m: a larger error is taken as this (numerical bound only)
+TERM_LIMIT = 1.0e6     # V: bound of the proportional term, an integral increment, the integral
 
 
 class PiGains(NamedTuple):
@@ -48,13 +57,28 @@ def differential_limits(beta, u_min, u_max):
 
 
 @njit(cache=True)
+def bounded(x, limit):
+    """x clamped to [-limit, limit]; NaN -> 0 (+-inf -> +-limit)."""
+    if x > limit:
+        return limit
+    if x < -limit:
+        return -limit
+    if x != x:
+        return 0.0
+    return x
+
+
+@njit(cache=True)
 def pi_step(e, dt, i_term, kp, ki, beta, u_min, u_max, anti_windup, tracking_time, dt_max):
-    """One PI step. Returns (u1, u2, p_term, i_term_new, saturated).
+    """One PI step. Returns (u1, u2, p_term, i_term_new, saturated), all finite.
 
     anti_windup: 0 conditional integration, 1 back-calculation with time constant
-    tracking_time (s). dt (s) outside (0, dt_max] freezes the integral.
+    tracking_time (s). dt (s) outside (0, dt_max] freezes the integral. e is bounded to
+    +-ERROR_LIMIT, the terms to +-TERM_LIMIT V (see the module docstring).
     """
-    p_term = kp * e
+    e = bounded(e, ERROR_LIMIT)
+    i_term = bounded(i_term, TERM_LIMIT)
+    p_term = bounded(kp * e, TERM_LIMIT)
     v = p_term + i_term
     v_lo, v_hi = differential_limits(beta, u_min, u_max)
     v_sat = min(max(v, v_lo), v_hi)
@@ -63,9 +87,11 @@ def pi_step(e, dt, i_term, kp, ki, beta, u_min, u_max, anti_windup, tracking_tim
         if anti_windup == 0:
             pushing_further = (v > v_hi and e > 0.0) or (v < v_lo and e < 0.0)
             if not pushing_further:
-                i_term = i_term + ki * e * dt
+                i_term = bounded(i_term + bounded(ki * e * dt, TERM_LIMIT), TERM_LIMIT)
         else:
-            i_term = i_term + (ki * e + (v_sat - v) / tracking_time) * dt
+            increment = (bounded(ki * e * dt, TERM_LIMIT)
+                         + bounded((v_sat - v) / tracking_time * dt, TERM_LIMIT))
+            i_term = bounded(i_term + increment, TERM_LIMIT)
     return beta + v_sat, beta - v_sat, p_term, i_term, saturated
 
 
@@ -77,8 +103,8 @@ class PiController:
         validate_gains(gains)
         if anti_windup not in ANTI_WINDUP:
             raise ValueError(f'anti_windup must be one of {ANTI_WINDUP}, got {anti_windup!r}')
-        if not (tracking_time > 0.0 and dt_max > 0.0):
-            raise ValueError('tracking_time and dt_max must be > 0 s')
+        if not (0.0 < tracking_time < math.inf and 0.0 < dt_max < math.inf):
+            raise ValueError('tracking_time and dt_max must be finite and > 0 s')
         self.gains = gains
         self.anti_windup = anti_windup
         self.tracking_time = float(tracking_time)
@@ -99,7 +125,6 @@ class PiController:
 
 def validate_gains(g: PiGains) -> PiGains:
     """Finite, non-negative gains; u_min <= beta <= u_max within [0, 10] V."""
-    import math
     for name, value in g._asdict().items():
         if not math.isfinite(value):
             raise ValueError(f'{name} must be finite, got {value!r}')
