@@ -13,8 +13,9 @@ At the end it waits (at most `wait_for_all_acked`) for reliable subscribers to a
 message: a sample not acknowledged when the writer's process exits is lost.
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
 package) is one error line naming the file and the problem, exit code 2, before anything is
-published; a damaged chunk inside an otherwise complete file is found when playback reaches it:
-the messages before it are played, then an error naming the file, exit code 1.
+published; a damaged chunk inside an otherwise complete file (its CRC does not match, or it does
+not decompress) is found when playback reaches it: the messages before it are played, then an
+error naming the file and the chunk, exit code 2 too (README, Exit codes).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.task import Future
 
 from pam_driver.bag_record import message_class, split_list
-from pam_driver.bags import BagError, open_bag
+from pam_driver.bags import EXIT_BAD_INPUT, BagError, open_bag
 from pam_driver.executors import run_node
 from pam_driver.read_ahead import END, ReadAhead
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
@@ -199,7 +200,7 @@ class BagPlayer(Node):
             self._play_passes(source)
         except BagError as exc:     # a damaged chunk: what came before it was played
             self.get_logger().error(f'{exc}; stopping')
-            self.exit_code = 1
+            self.exit_code = EXIT_BAD_INPUT
         finally:
             if source is not None:
                 source.close()

@@ -9,8 +9,12 @@ in that record, as rosbag2 Jazzy writes. Writing goes through rosbags' Writer wi
 writer that also writes topic_type_hash, closes a chunk at least every `chunk_interval` seconds
 and writes it to disk at once (unbuffered), so that a crash loses at most the last chunk, and a
 write error leaves the file truncated to its last complete chunk and closed with a valid summary
-(a readable bag of what was written). recover_bag() turns the directory a crashed recorder left
-(every complete chunk, no summary, no metadata.yaml) into a complete bag again.
+(a readable bag of what was written). Every chunk carries the CRC32 of its records, and each
+file the data section and summary CRCs (MCAP specification; as rosbag2's MCAP writer); every
+read checks the chunk CRCs (a CRC of 0, in bags written before, is not checked), verify_bag()
+also the data section's. recover_bag() turns the directory a crashed recorder left (every
+complete chunk, no summary, no metadata.yaml), or a bag with a damaged chunk or a missing file,
+into a complete bag again.
 
 Types: the Jazzy typestore of rosbags plus the messages of pam_interfaces, registered from their
 .msg files (their RIHS01 hashes equal rosidl's).
@@ -25,15 +29,22 @@ import shutil
 import struct
 import threading
 import time
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-MCAP_MAGIC = b'\x89MCAP0\r\n'
+from .mcap_check import (MCAP_MAGIC, RECORD_HEAD, FileCheck, check_file, chunk_records,
+                         records, summary_problem)
+
 METADATA = 'metadata.yaml'
 DEFAULT_CHUNK_INTERVAL = 1.0   # s: longest time a received message stays only in memory
 MIN_SPLIT_SIZE = 100_000      # B: smallest max_bag_size (a file of a split bag)
 MIN_SPLIT_DURATION = 1.0      # s: smallest max_bag_duration
 ROS_DISTRO = 'jazzy'   # the bags' ros_distro (rosbag2 writes $ROS_DISTRO; rosbags 'rosbags')
+
+
+EXIT_BAD_INPUT = 2   # exit code of every tool for bad input: a missing, bad or damaged bag
+#                      (README, Exit codes)
 
 
 class BagError(RuntimeError):
@@ -111,10 +122,14 @@ def qos_from_ints(history: int, depth: int, reliability: int, durability: int, l
 
 # ------------------------------------------------------------------------------- writing
 class _FullWrite:
-    """An unbuffered file that writes everything or raises (a short write becomes an OSError)."""
+    """An unbuffered file that writes everything or raises (a short write becomes an OSError).
 
-    def __init__(self, raw):
+    `crc`: the CRC32 of the file's bytes from its start (`crc` given: that of the bytes already
+    in it), as of the last complete write (the MCAP data section CRC)."""
+
+    def __init__(self, raw, crc: int = 0):
         self.raw = raw
+        self.crc = crc
 
     def write(self, data) -> int:
         view = memoryview(data)
@@ -123,6 +138,7 @@ class _FullWrite:
             if not n:
                 raise OSError('short write (file size limit or disk full?)')
             view = view[n:]
+        self.crc = zlib.crc32(data, self.crc)
         return len(data)
 
     def tell(self) -> int:
@@ -137,6 +153,46 @@ class _FullWrite:
 
     def close(self) -> None:
         self.raw.close()
+
+
+class _Staged:
+    """An in-memory file standing at byte `base` of the real one (tell() counts from there):
+    records written to it get their CRCs patched in, then go to the file in one write."""
+
+    def __init__(self, base: int):
+        from io import BytesIO
+        self.base = base
+        self.data = BytesIO()
+
+    def write(self, data) -> int:
+        return self.data.write(data)
+
+    def tell(self) -> int:
+        return self.base + self.data.tell()
+
+    def close(self) -> None:
+        pass
+
+
+# byte offsets in MCAP records (opcode 1 + length 8, then the fields; MCAP specification)
+_CHUNK_CRC_AT = 9 + 3 * 8        # Chunk: start time, end time, uncompressed size, then the CRC
+_DATA_END_SIZE = 9 + 4           # DataEnd: data_section_crc
+_FOOTER_TAIL = 4 + len(MCAP_MAGIC)   # Footer's summary_crc, then the closing magic
+_CRC = struct.Struct('<I')
+
+
+def _patch_summary(data: bytearray, base: int, data_crc: int) -> None:
+    """The CRCs of what an MCAP writer wrote from the end of its last chunk to the file's end
+    (`data`, starting at file byte `base`; `data_crc`: the CRC32 of the file before it): the
+    DataEnd record's data_section_crc (every byte from the file's start to the DataEnd record)
+    and the Footer's summary_crc (from the summary's start to the Footer's summary_crc)."""
+    summary_start = struct.unpack_from('<Q', data, len(data) - _FOOTER_TAIL - 16)[0]
+    data_end = summary_start - base - _DATA_END_SIZE      # the DataEnd record precedes it
+    if not 0 <= data_end or data[data_end] != 0x0F:
+        raise BagWriteError(f'no DataEnd record before the summary at byte {summary_start}')
+    _CRC.pack_into(data, data_end + 9, zlib.crc32(data[:data_end], data_crc))
+    footer_crc = len(data) - _FOOTER_TAIL
+    _CRC.pack_into(data, footer_crc, zlib.crc32(data[summary_start - base:footer_crc]))
 
 
 def _storage_writer_class():
@@ -159,8 +215,8 @@ def _storage_writer_class():
                 # rosbags always creates <dir>.mcap; a split bag's files are <dir>_<i>.mcap
                 os.rename(self.path, path / self.file_name)
                 self.path = path / self.file_name
-            self.bio.flush()
-            self.bio = _FullWrite(self.bio.detach())
+            self.bio.flush()     # the magic and the Header record: the data section's start
+            self.bio = _FullWrite(self.bio.detach(), zlib.crc32(self.path.read_bytes()))
             self._chunk_opened = time.monotonic()
             self._committed_stats = dict(self.channel_stats)
             self._committed_times = (self.message_start_time, self.message_end_time)
@@ -191,10 +247,27 @@ def _storage_writer_class():
             if time.monotonic() - self._chunk_opened > self.chunk_interval:
                 self.close_chunk()
 
-        def close_chunk(self):
-            start = self.bio.tell()
+        def _write_staged(self, write, patch) -> None:
+            """Run rosbags' `write` into memory, patch(bytes, file offset) its CRCs in, then
+            write the result to the file at once."""
+            real, staged = self.bio, _Staged(self.bio.tell())
+            self.bio = staged
             try:
-                super().close_chunk()
+                write()
+            finally:
+                self.bio = real
+            data = bytearray(staged.data.getbuffer())
+            patch(data, staged.base)
+            real.write(data)
+
+        def close_chunk(self):
+            """The open chunk (rosbags' record, with its uncompressed_crc) and its message
+            indexes, written to the file at once."""
+            start = self.bio.tell()
+            crc = zlib.crc32(self.chunk.bio.getbuffer())
+            try:
+                self._write_staged(super().close_chunk,
+                                   lambda data, _: _CRC.pack_into(data, _CHUNK_CRC_AT, crc))
             except OSError as exc:
                 self.failed = exc
                 self.bio.truncate(start)
@@ -217,6 +290,16 @@ def _storage_writer_class():
             self._committed_stats = dict(self.channel_stats)
             self._committed_times = (self.message_start_time, self.message_end_time)
             self._committed_chunks = len(self.chunks)
+
+        def close(self, version, metadata):
+            """rosbags' metadata record, DataEnd, summary and footer, with the data section's
+            and the summary's CRCs, written at once."""
+            if self.chunk.bio.tell():
+                self.close_chunk()
+            real = self.bio
+            self._write_staged(functools.partial(super().close, version, metadata),
+                               lambda data, base: _patch_summary(data, base, real.crc))
+            real.close()
 
         def stats(self, name: str) -> '_BagFile':
             """What this file holds as of its last complete chunk (after an error) or now."""
@@ -330,7 +413,8 @@ class BagWriter:
     before a message that would make the bytes written plus the open chunk (uncompressed) reach
     max_bag_size, or that comes max_bag_duration or more after the file's first message. The
     rosbag2 metadata record and the summary (a few kB) come on top of max_bag_size. Without
-    them: one file, <dir>.mcap.
+    them: one file, <dir>.mcap. `file_name` and next_file(name) name the files otherwise
+    (pam-bag-recover keeps the names of the files it rebuilds).
 
     Thread-safe: bag_record adds topics from its executor thread (discovery) while its writer
     thread writes (one lock; a topic added during a chunk's compression once corrupted it).
@@ -344,6 +428,7 @@ class BagWriter:
     max_bag_duration: float = 0.0       # s per file; 0: no split by time
     split: bool = False                 # files <dir>_<i>.mcap (implied by the two above)
     topics: dict = field(default_factory=dict)
+    file_name: str = ''                 # the first file's name ('': <dir>.mcap, <dir>_0.mcap)
 
     def __post_init__(self):
         from rosbags.rosbag2 import Writer
@@ -359,7 +444,7 @@ class BagWriter:
             self.typestore = make_typestore()
         self._storage = storage = _storage_writer_class()
         storage.chunk_interval = self.chunk_interval
-        storage.file_name = self._file_name(0)
+        storage.file_name = self.file_name or self._file_name(0)
 
         class _Writer(Writer):
             STORAGE_PLUGINS = {StoragePlugin.MCAP: storage}
@@ -384,7 +469,7 @@ class BagWriter:
     @property
     def mcap_path(self) -> Path:
         """The file being written."""
-        return self.path / self._file_name(len(self.files))
+        return self.path / self._storage.file_name
 
     @_locked
     def add_topic(self, topic: str, msgtype: str, qos_profiles=()) -> None:
@@ -423,6 +508,18 @@ class BagWriter:
         storage = self._writer.storage
         return storage is not None and any(storage.channel_stats.values())
 
+    @_locked
+    def rename_file(self, name: str) -> None:
+        """Give the file being written, while it holds no message, another name."""
+        storage = self._writer.storage
+        new = self.path / name
+        if storage is None or self.file_has_messages() or new.exists():
+            raise BagError(f'{self.mcap_path}: cannot rename it to {name} (closed, holding '
+                           'messages, or the name is taken)')
+        os.rename(storage.path, new)
+        storage.path = new
+        self._storage.file_name = name
+
     def _file_full(self, t_ns: int) -> bool:
         storage = self._writer.storage
         if not self.split or not self.file_has_messages() or storage.failed is not None:
@@ -432,15 +529,15 @@ class BagWriter:
                      t_ns - storage.message_start_time >= self.max_bag_duration * 1e9))
 
     @_locked
-    def next_file(self) -> None:
-        """Close the file being written (complete, with its summary) and open the next one with
-        the same schemas and channels (a split bag)."""
+    def next_file(self, name: str = '') -> None:
+        """Close the file being written (complete, with its summary) and open the next one,
+        `name` ('': <dir>_<i>.mcap), with the same schemas and channels (a split bag)."""
         if not self.split:
             raise BagError(f'{self.path}: not a split bag (max_bag_size, max_bag_duration or '
                            'split)')
         old = self._writer.storage
         self._close_file()
-        self._storage.file_name = self._file_name(len(self.files))
+        self._storage.file_name = name or self._file_name(len(self.files))
         try:
             new = self._storage(self.path, self._writer.compression_mode)
         except OSError as exc:
@@ -500,7 +597,15 @@ def check_bag(path) -> Path:
         path = path.parent
     if not path.is_dir():
         raise BagError(f'{path}: no such bag directory')
-    meta = path / METADATA
+    for name in read_metadata(path)['relative_file_paths']:
+        check_mcap(path / name)
+    return path
+
+
+def read_metadata(path) -> dict:
+    """The rosbag2_bagfile_information of the bag directory `path` (its metadata.yaml), with
+    its file list (relative_file_paths) and storage 'mcap'; BagError otherwise."""
+    meta = Path(path) / METADATA
     if not meta.is_file():
         raise BagError(f'{meta}: missing (not a rosbag2 bag directory, or the recorder was '
                        f'killed before closing it: `pam-bag-recover {path}` repairs that)')
@@ -509,17 +614,18 @@ def check_bag(path) -> Path:
         info = YAML(typ='safe').load(meta.read_text())['rosbag2_bagfile_information']
         files = info['relative_file_paths']
         storage = info.get('storage_identifier')
+        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+            raise ValueError('relative_file_paths is not a list of file names')
     except Exception as exc:  # noqa: BLE001
         raise BagError(f'{meta}: unreadable metadata: {exc}') from exc
     if storage != 'mcap':
         raise BagError(f'{meta}: storage {storage!r} is not supported (only mcap)')
-    for name in files:
-        check_mcap(path / name)
-    return path
+    return info
 
 
 def check_mcap(path) -> None:
-    """Magic at both ends and a readable summary; BagError naming the file and the problem."""
+    """Magic at both ends, a readable summary and its CRC (if it has one); BagError naming the
+    file and the problem."""
     path = Path(path)
     if not path.is_file():
         raise BagError(f'{path}: missing (listed in {METADATA})')
@@ -536,11 +642,45 @@ def check_mcap(path) -> None:
     try:
         from mcap.reader import make_reader
         with path.open('rb') as f:
+            problem = summary_problem(f, size)
+            if problem:
+                raise ValueError(problem)
+            f.seek(0)
             summary = make_reader(f).get_summary()
         if summary is None:
             raise ValueError('no summary section')
     except Exception as exc:  # noqa: BLE001
         raise BagError(f'{path}: corrupt MCAP file: {exc}') from exc
+
+
+def verify_bag(path, first_only: bool = False) -> list[FileCheck]:
+    """Every file of a bag read through (mcap_check.check_file: every chunk with its CRC, the
+    data section and summary CRCs), after the checks of check_mcap; a file metadata.yaml lists
+    that is missing is a problem too. `first_only`: stop at the first problem. BagError if
+    the bag directory or its metadata.yaml is unusable."""
+    path = Path(path)
+    if path.is_file() and path.suffix == '.mcap':
+        path = path.parent
+    if not path.is_dir():
+        raise BagError(f'{path}: no such bag directory')
+    info = read_metadata(path)
+    start_ns = (info.get('starting_time') or {}).get('nanoseconds_since_epoch')
+    checks = []
+    for name in info['relative_file_paths']:
+        check = FileCheck(path / name)
+        try:
+            check_mcap(path / name)
+        except BagError as exc:
+            check.problems.append(str(exc).replace(f'{path / name}: ', f'{name}: ', 1))
+        if check.path.is_file() and not (first_only and check.problems):
+            found = check_file(check.path, start_ns, first_only)
+            check.chunks, check.chunks_with_crc = found.chunks, found.chunks_with_crc
+            check.data_crc = found.data_crc
+            check.problems += found.problems
+        checks.append(check)
+        if first_only and check.problems:
+            break
+    return checks
 
 
 @dataclass
@@ -575,8 +715,18 @@ class BagSelection:
                     count += 1
         except Exception as exc:  # noqa: BLE001 - damaged, or changed since open_bag
             where = self.files[0] if len(self.files) == 1 else self.path
-            raise BagError(f'{where}: corrupt data after {count} messages: {exc} (`pam-bag-'
-                           f'recover {self.path}` keeps the readable chunks)') from exc
+            raise BagError(f'{where}: corrupt data after {count} messages: '
+                           f'{self._first_damage(exc)} (`pam-bag-recover {self.path}` keeps the '
+                           'readable chunks)') from exc
+
+    def _first_damage(self, error: Exception) -> str:
+        """The first problem verify_bag finds (it names the file and the chunk), else what
+        the reader said (`error`)."""
+        try:
+            problems = [p for c in verify_bag(self.path, first_only=True) for p in c.problems]
+        except BagError as exc:
+            problems = [str(exc)]
+        return problems[0] if problems else str(error)
 
 
 def bag_files(path) -> list[Path]:
@@ -711,7 +861,6 @@ def format_info(info: dict) -> str:
 # ------------------------------------------------------------------------------- recovery
 DAMAGED = '.damaged'            # suffix of the original files recover_bag() keeps
 RECOVER_TMP = '.pam-bag-recover.tmp'
-_RECORD_HEAD = struct.Struct('<BQ')   # MCAP record: opcode, body length
 
 
 @dataclass
@@ -726,6 +875,13 @@ class Recovery:
     start_ns: int = 0           # first and last message (receive) time
     end_ns: int = 0
     problems: list = field(default_factory=list)   # what was dropped, where and why
+    missing: list = field(default_factory=list)    # (name, messages or None): files the bag
+    #                                                listed that were not there
+
+    @property
+    def lost_messages(self) -> int:
+        """Messages of the missing files (as far as the bag's metadata counted them)."""
+        return sum(n or 0 for _, n in self.missing)
 
 
 def first_problems(problems: list, limit: int = 3) -> list:
@@ -734,44 +890,21 @@ def first_problems(problems: list, limit: int = 3) -> list:
     return problems[:limit] + ([f'... and {more} more'] if more > 0 else [])
 
 
-def _records(stream, size: int):
-    """(offset, opcode, body) of each complete MCAP record from the stream's position on; stops
-    before a record that is cut off (extends past `size`) or whose opcode is invalid."""
-    pos = stream.tell()
-    while pos + _RECORD_HEAD.size <= size:
-        opcode, length = _RECORD_HEAD.unpack(stream.read(_RECORD_HEAD.size))
-        if not (0 < opcode < 0x10 or opcode >= 0x80) or pos + _RECORD_HEAD.size + length > size:
-            return
-        yield pos, opcode, stream.read(length)
-        pos += _RECORD_HEAD.size + length
-
-
 def _parse_records(opcode: int, body: bytes) -> tuple[str, list]:
     """(chunk compression or None, the schema/channel/message records) of one record; a chunk
-    is decompressed (its CRC checked when it has one) and must hold complete records only."""
+    is checked and unpacked by mcap_check.chunk_records."""
     from io import BytesIO
 
     from mcap.data_stream import ReadDataStream
     from mcap.opcode import Opcode
-    from mcap.records import Channel, Chunk, Message, Schema
-    from mcap.stream_reader import get_chunk_data_stream
-
-    def stream(data):
-        return ReadDataStream(BytesIO(data))
+    from mcap.records import Channel, Message, Schema
     if opcode != Opcode.CHUNK:
         readers = {Opcode.SCHEMA: Schema.read, Opcode.CHANNEL: Channel.read,
                    Opcode.MESSAGE: lambda s: Message.read(s, len(body))}
-        return None, [readers[opcode](stream(body))] if opcode in readers else []
-    chunk = Chunk.read(stream(body))
-    data_stream, size = get_chunk_data_stream(chunk, validate_crc=True)
-    if size != chunk.uncompressed_size:
-        raise ValueError(f'{size} bytes uncompressed, the chunk says {chunk.uncompressed_size}')
-    data = data_stream.read(size)
-    inner = list(_records(BytesIO(data), size))
-    end = inner[-1][0] + _RECORD_HEAD.size + len(inner[-1][2]) if inner else 0
-    if end != size:
-        raise ValueError(f'invalid record at byte {end} of the uncompressed chunk')
-    return chunk.compression, [r for _, op, b in inner for r in _parse_records(op, b)[1]]
+        return None, ([readers[opcode](ReadDataStream(BytesIO(body)))] if opcode in readers
+                      else [])
+    compression, inner = chunk_records(body)
+    return compression, [r for _, op, b in inner for r in _parse_records(op, b)[1]]
 
 
 def _file_index(mcap: Path) -> tuple:
@@ -785,38 +918,75 @@ def _file_index(mcap: Path) -> tuple:
     return (2, 0, mcap.name)
 
 
-def _find_damaged(path) -> tuple[Path, list]:
-    """The bag directory and its .mcap files in order, if it needs recovery; BagError
+def _listed_files(path: Path) -> list[tuple[str, int | None]]:
+    """(name, message count or None) of each file the bag lists, in order: its metadata.yaml,
+    or without one the 'rosbag2' record of its complete .mcap that lists the most files (each
+    file of a split recording holds the bag's metadata as of its closing)."""
+    try:
+        info = read_metadata(path)
+    except BagError:
+        info = {}
+        for mcap in path.glob('*.mcap'):
+            try:
+                check_mcap(mcap)
+                embedded = embedded_metadata(mcap)
+            except Exception:  # noqa: BLE001 - incomplete or damaged: it lists nothing
+                continue
+            if (len(embedded.get('relative_file_paths') or []) >
+                    len(info.get('relative_file_paths') or [])):
+                info = embedded
+    counts = {f.get('path'): f.get('message_count') for f in info.get('files') or []
+              if isinstance(f, dict)}
+    return [(name, counts.get(name)) for name in info.get('relative_file_paths') or []
+            if isinstance(name, str)]
+
+
+def _readable(path: Path) -> bool:
+    """Whether the bag passes verify_bag (every chunk, the CRCs) and every message reads."""
+    try:
+        if any(check.problems for check in verify_bag(path, first_only=True)):
+            return False
+        for _ in open_bag(path).messages():
+            pass
+    except BagError:
+        return False
+    return True
+
+
+def _find_damaged(path) -> tuple[Path, list, list]:
+    """The bag directory, its .mcap files in order (as listed, then the others) and the
+    (name, messages) of the files it lists that are missing, if it needs recovery; BagError
     otherwise."""
     path = Path(path)
     if path.is_file() and path.suffix == '.mcap':
         path = path.parent
     if not path.is_dir():
         raise BagError(f'{path}: no such bag directory')
-    mcaps = sorted(path.glob('*.mcap'), key=_file_index)
+    listed = _listed_files(path)
+    order = {name: i for i, (name, _) in enumerate(listed)}
+    mcaps = sorted(path.glob('*.mcap'), key=lambda p: (order.get(p.name, len(order)),
+                                                        _file_index(p)))
+    missing = [(name, n) for name, n in listed if not (path / name).is_file()]
     if not mcaps:
-        raise BagError(f'{path}: no .mcap file')
-    if (path / METADATA).exists():
-        try:
-            for _ in open_bag(path).messages():   # every chunk, not only the summaries
-                pass
-        except BagError:
-            pass
-        else:
-            raise BagError(f'{path}: a complete bag (metadata.yaml and .mcap files with their '
-                           'summaries, every message readable): it needs no recovery')
+        raise BagError(f'{path}: no .mcap file' + (
+            f' (it lists {", ".join(name for name, _ in missing)}: all missing)'
+            if missing else ''))
+    if (path / METADATA).exists() and _readable(path):
+        raise BagError(f'{path}: a complete bag (metadata.yaml and .mcap files with their '
+                       'summaries, every chunk and CRC checked): it needs no recovery')
     for original in (*mcaps, path / METADATA):
         kept = original.with_name(original.name + DAMAGED)
         if kept.exists():
             raise BagError(f'{kept}: already exists (left by an earlier recovery?); move it '
                            'away first')
-    return path, mcaps
+    return path, mcaps, missing
 
 
 def _rewrite(sources: list, out: Path) -> Recovery:
     """Every message of the complete records of `sources` (the .mcap files of a crashed
     recording, in order) into a new bag at `out`, through BagWriter (summary, indexes,
-    metadata.yaml, the rosbag2 record); one output file per source file."""
+    metadata.yaml, the rosbag2 record); one output file per source file with messages, of the
+    source's name."""
     result = Recovery(path=out, damaged=[], size=sum(f.stat().st_size for f in sources))
     split = len(sources) > 1 or _file_index(sources[0])[0] == 1     # <dir>_<i>.mcap names
     state = _Rebuild(out, split)
@@ -846,15 +1016,18 @@ class _Rebuild:
     compression: str = 'zstd'
     writer: BagWriter | None = None
 
-    def bag(self) -> BagWriter:
+    def bag(self, file_name: str) -> BagWriter:
+        """The bag, made now if need be, its first file named `file_name`."""
         if self.writer is None:
-            self.writer = BagWriter(self.out, compression=self.compression, split=self.split)
+            self.writer = BagWriter(self.out, compression=self.compression, split=self.split,
+                                    file_name=file_name)
         return self.writer
 
 
 def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
-    """The messages of one crashed .mcap into the bag being rebuilt, starting a new output
-    file if the bag has one with messages already."""
+    """The messages of one crashed .mcap into the bag being rebuilt, into an output file of
+    the source's name: a new one if the bag's holds messages already, else that one
+    renamed."""
     from mcap.opcode import Opcode
     from mcap.records import Channel, Message, Schema
     from rosbags.rosbag2.metadata import parse_qos
@@ -863,19 +1036,21 @@ def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
     size = source.stat().st_size
     writer = state.writer
     if writer is not None and writer.file_has_messages():
-        writer.next_file()
+        writer.next_file(source.name)
+    elif writer is not None:
+        writer.rename_file(source.name)
     schemas, topics, lost = {}, {}, collections.Counter()   # lost: channel id -> messages
     with source.open('rb') as f:
         if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise BagError(f'{source}: not an MCAP file (bad magic)')
         end = len(MCAP_MAGIC)
-        for offset, opcode, body in _records(f, size):
-            end = offset + _RECORD_HEAD.size + len(body)
+        for offset, opcode, body in records(f, size):
+            end = offset + RECORD_HEAD.size + len(body)
             if opcode in (Opcode.FOOTER, Opcode.DATA_END):   # the summary follows
                 end = size
                 break
             try:
-                kind, records = _parse_records(opcode, body)
+                kind, parsed = _parse_records(opcode, body)
             except Exception as exc:  # noqa: BLE001 - any damage: drop this record
                 result.dropped_bytes += end - offset
                 result.problems.append(f'{source.name} offset {offset}: unreadable record '
@@ -883,12 +1058,12 @@ def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
                 continue
             if kind is not None:
                 state.compression = 'zstd' if kind else 'none'
-            for record in records:
+            for record in parsed:
                 if isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel) and record.schema_id in schemas:
                     schema = schemas[record.schema_id]
-                    writer = state.bag()
+                    writer = state.bag(source.name)
                     try:
                         if not known_type(writer.typestore, schema.name):
                             writer.typestore.register(get_types_from_msg(
@@ -926,12 +1101,13 @@ def _fsync(path: Path) -> None:
 def recover_bag(path) -> Recovery:
     """Make the bag directory a crashed recorder left (an .mcap without summary, or a split
     bag's complete files and the last one without summary; no metadata.yaml), or a complete
-    bag with a damaged chunk, a complete bag again:
+    bag with a damaged chunk or a missing file, a complete bag again:
     every message of their complete records is rewritten into new files of the same names
-    (`<dir>.mcap`, or `<dir>_<i>.mcap` one per original) + metadata.yaml; the original files
-    (and a metadata.yaml that did not open) are kept beside them as `<name>.damaged`. BagError
-    (nothing changed) if the directory needs no recovery or holds no complete message."""
-    bag, sources = _find_damaged(path)
+    (one per original that holds a message) + metadata.yaml; the original files (and
+    metadata.yaml) are kept beside them as `<name>.damaged`. The files the bag listed that are
+    missing are in Recovery.missing, with their message counts. BagError (nothing changed) if
+    the directory needs no recovery or holds no complete message."""
+    bag, sources, missing = _find_damaged(path)
     tmp = bag / RECOVER_TMP
     shutil.rmtree(tmp, ignore_errors=True)     # left by an interrupted recovery
     tmp.mkdir()
@@ -951,4 +1127,5 @@ def recover_bag(path) -> Recovery:
     shutil.rmtree(tmp)
     _fsync(bag)
     result.path = bag
+    result.missing = missing
     return result

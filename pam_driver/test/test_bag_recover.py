@@ -43,7 +43,7 @@ def test_killed_recording_is_recovered(node_process, probe, tmp_path_factory):
     assert rec.wait_exit(10.0) == -9
 
     refused = run('pam-bag-info', out)
-    assert refused.returncode == 1 and 'metadata.yaml: missing' in refused.stderr
+    assert refused.returncode == 2 and 'metadata.yaml: missing' in refused.stderr
     assert 'pam-bag-recover' in refused.stderr
 
     fixed = run('pam-bag-recover', out)

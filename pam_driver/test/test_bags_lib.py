@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from pam_driver import bags
+from pam_driver.testing import damage_chunk
 
 PRESSURES = 'pam_interfaces/msg/Pressures'
 
@@ -21,7 +22,7 @@ def pressures(store, i):
     t = store.types
     msg = t[PRESSURES](header=t['std_msgs/msg/Header'](
         stamp=t['builtin_interfaces/msg/Time'](sec=i // 1000, nanosec=(i % 1000) * 1_000_000),
-        frame_id='pam'), p1=1e5 + i, p2=2e5)
+        frame_id='pam'), p1=1e5 + i, p2=2e5, sample=i + 1)
     return bytes(store.serialize_cdr(msg, PRESSURES))
 
 
@@ -34,6 +35,49 @@ def write_bag(store, path, n=3000, period_ns=10**6, **kw):
         w.write('/pam/pressures', 10**18 + i * period_ns, pressures(store, i))
     w.close()
     return w
+
+
+def assert_crcs(mcap):
+    """Every chunk's uncompressed_crc, the DataEnd's data_section_crc and the Footer's
+    summary_crc of the MCAP file are set and are zlib.crc32 of what the MCAP specification says
+    (found by parsing the file with the mcap package, not pam_driver); the mcap package's own
+    CRC validation passes too."""
+    import zlib
+
+    import zstandard
+    from mcap.records import Chunk, DataEnd, Footer
+    from mcap.stream_reader import StreamReader
+    data = Path(mcap).read_bytes()
+    found = [r for r in StreamReader(str(mcap), emit_chunks=True).records
+             if isinstance(r, (Chunk, DataEnd, Footer))]
+    chunks = [r for r in found if isinstance(r, Chunk)]
+    [data_end] = [r for r in found if isinstance(r, DataEnd)]
+    [footer] = [r for r in found if isinstance(r, Footer)]
+    assert chunks
+    for chunk in chunks:
+        records = (zstandard.decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+                   if chunk.compression == 'zstd' else chunk.data)
+        assert chunk.uncompressed_crc == zlib.crc32(records) != 0
+    data_end_at = footer.summary_start - 13      # DataEnd (opcode, length, CRC) ends the data
+    assert data[data_end_at] == 0x0F
+    assert data_end.data_section_crc == zlib.crc32(data[:data_end_at]) != 0
+    assert footer.summary_crc == zlib.crc32(data[footer.summary_start:len(data) - 12]) != 0
+    assert sum(1 for _ in StreamReader(str(mcap), validate_crcs=True).records) > len(chunks)
+
+
+def test_chunks_data_section_and_summary_carry_crcs(store, tmp_path):
+    """As the MCAP specification and rosbag2's writer: chunk CRCs, data section and summary
+    CRCs, in a bag of one file (2 chunks, zstd) and in each file of a split bag (no
+    compression)."""
+    write_bag(store, tmp_path / 'b', n=25_000)
+    assert len(_mcap_summary(tmp_path / 'b' / 'b.mcap').chunk_indexes) >= 2
+    assert_crcs(tmp_path / 'b' / 'b.mcap')
+    write_bag(store, tmp_path / 's', n=3000, compression='none', max_bag_duration=1.0,
+              chunk_interval=0.0)
+    files = sorted((tmp_path / 's').glob('*.mcap'))
+    assert len(files) == 3
+    for f in files:
+        assert_crcs(f)
 
 
 def test_type_hashes_match_rosidl(store):
@@ -135,6 +179,67 @@ def test_a_damaged_chunk_stops_reading_after_the_messages_before_it(store, chunk
     assert [data for _, _, data in got] == [pressures(store, i) for i in range(20)]
 
 
+@pytest.fixture(scope='module')
+def two_chunks(store, tmp_path_factory):
+    """A complete bag of 25000 messages in two zstd chunks (1 MB uncompressed each at most),
+    and the number of messages in its chunk 0."""
+    path = tmp_path_factory.mktemp('two_chunks') / 'b'
+    write_bag(store, path, n=25_000)
+    [first, _] = _mcap_summary(path / 'b.mcap').chunk_indexes
+    return path, (first.message_end_time - 10**18) // 10**6 + 1     # write_bag: 1 ms apart
+
+
+def test_silent_damage_in_a_chunk_is_found_by_its_crc(store, two_chunks, tmp_path):
+    """8 bytes flipped in chunk 1 where zstd still decompresses (the issue's corrupted bag):
+    every read path stops at chunk 1 with an error naming it (after chunk 0's messages),
+    verify_bag names it, recover_bag rebuilds the bag without it."""
+    import shutil
+    full, in_first = two_chunks
+    bag = tmp_path / 'b'
+    shutil.copytree(full, bag)
+    damage_chunk(bag / 'b.mcap', 1)
+    with pytest.raises(bags.BagError, match=r'b\.mcap: corrupt data after \d+ messages: b\.mcap: '
+                       r'chunk 1 at byte \d+ \(messages .* into the bag\) is damaged: CRC '
+                       'mismatch'):
+        bags.load_bag(bag)
+    got = []
+    with pytest.raises(bags.BagError, match='chunk 1 at byte'):
+        for item in bags.open_bag(bag).messages():
+            got.append(item[2])
+    assert got == [pressures(store, i) for i in range(in_first)]
+    problems = [p for check in bags.verify_bag(bag) for p in check.problems]
+    assert len(problems) == 2, problems
+    assert problems[0].startswith('b.mcap: chunk 1 at byte') and 'CRC mismatch' in problems[0]
+    assert 'data section CRC mismatch' in problems[1] and 'damaged chunk(s) above' in problems[1]
+    assert not any(check.problems for check in bags.verify_bag(full))
+
+    result = bags.recover_bag(bag)
+    assert result.counts == {'/pam/pressures': in_first} and not result.missing
+    assert 'CRC mismatch' in result.problems[0]
+    assert bags.load_bag(bag).data == [pressures(store, i) for i in range(in_first)]
+
+
+def test_a_bag_without_crcs_still_reads(store, two_chunks, tmp_path):
+    """Bags written before pam_driver wrote CRCs have 0 there ("not computed"): accepted."""
+    import shutil
+    import struct
+    full, _ = two_chunks
+    bag = tmp_path / 'b'
+    shutil.copytree(full, bag)
+    mcap = bag / 'b.mcap'
+    data = bytearray(mcap.read_bytes())
+    for chunk in _mcap_summary(mcap).chunk_indexes:
+        struct.pack_into('<I', data, chunk.chunk_start_offset + 9 + 24, 0)
+    summary_start = struct.unpack_from('<Q', data, len(data) - 8 - 20)[0]
+    struct.pack_into('<I', data, summary_start - 4, 0)      # DataEnd's data_section_crc
+    struct.pack_into('<I', data, len(data) - 8 - 4, 0)      # Footer's summary_crc
+    mcap.write_bytes(data)
+    assert len(bags.load_bag(bag).data) == 25_000
+    [check] = bags.verify_bag(bag)
+    assert (check.chunks, check.chunks_with_crc, check.data_crc, check.problems) == (
+        2, 0, False, [])
+
+
 def test_topics_added_while_another_thread_writes(store, tmp_path):
     """bag_record adds a topic from its executor thread (discovery) while its writer thread
     writes and closes chunks: every chunk must stay consistent (a clean-clone CI run once read
@@ -185,6 +290,7 @@ def test_write_error_leaves_a_readable_bag(store, tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
     w.close()
     assert written < 100_000
+    assert_crcs(tmp_path / 'b' / 'b.mcap')    # the CRCs of the file as truncated
     contents = bags.load_bag(tmp_path / 'b')
     assert 0 < len(contents.data) <= written
     info = bags.bag_info(tmp_path / 'b')
@@ -266,6 +372,8 @@ def test_split_bag_stops_cleanly_on_a_write_error(store, tmp_path):
     w.close()
     info = bags.bag_info(tmp_path / 'b')
     assert [Path(f).name for f in info['files']] == ['b_0.mcap', 'b_1.mcap', 'b_2.mcap']
+    for f in info['files']:
+        assert_crcs(f)
     contents = bags.load_bag(tmp_path / 'b')
     values = [store.deserialize_cdr(d, PRESSURES).p1 for d in contents.data]
     in_two = sum(_mcap_summary(f).statistics.message_count for f in info['files'][:2])
@@ -428,6 +536,54 @@ def test_recover_a_split_bag(store, tmp_path):
     assert contents.data == [pressures(store, i) for i in range(2200)]
     assert (bag / 'b_0.mcap.damaged').read_bytes() == originals['b_0.mcap']
     assert (bag / 'b_2.mcap.damaged').read_bytes() == originals['b_2.mcap'][:cut]
+
+
+@pytest.fixture(scope='module')
+def split4(store, tmp_path_factory):
+    """A complete split bag: b_0.mcap .. b_3.mcap with 2000, 2000, 2000 and 1000 messages."""
+    path = tmp_path_factory.mktemp('split4') / 'b'
+    write_bag(store, path, n=7000, max_bag_duration=2.0)
+    return path
+
+
+def test_recover_names_the_missing_file_of_a_split_bag(store, split4, tmp_path):
+    """b_2.mcap deleted: recovery rebuilds the bag from the other files, which keep their
+    names (b_3.mcap stays b_3.mcap), and names the missing one with its 2000 messages (from
+    metadata.yaml)."""
+    import shutil
+    bag = tmp_path / 'b'
+    shutil.copytree(split4, bag)
+    (bag / 'b_2.mcap').unlink()
+    result = bags.recover_bag(bag)
+    assert result.missing == [('b_2.mcap', 2000)] and result.lost_messages == 2000
+    assert result.counts == {'/pam/pressures': 5000}
+    assert [Path(f).name for f in bags.bag_info(bag)['files']] == [
+        'b_0.mcap', 'b_1.mcap', 'b_3.mcap']
+    kept = [*range(4000), *range(6000, 7000)]
+    assert bags.load_bag(bag).data == [pressures(store, i) for i in kept]
+    assert sorted(p.name for p in bag.iterdir()) == sorted(
+        [f'b_{i}.mcap{s}' for i in (0, 1, 3) for s in ('', '.damaged')] +
+        ['metadata.yaml', 'metadata.yaml.damaged'])
+
+
+def test_recover_a_crashed_split_bag_with_a_file_missing(store, split4, tmp_path):
+    """No metadata.yaml (a killed recorder), the last file cut, b_1.mcap gone and the directory
+    renamed: the missing file and its count come from the 'rosbag2' record of b_2.mcap (the
+    bag's metadata as of its closing); the files keep their names."""
+    import shutil
+    bag = tmp_path / 'renamed'
+    shutil.copytree(split4, bag)
+    (bag / 'metadata.yaml').unlink()
+    (bag / 'b_1.mcap').unlink()
+    last = bag / 'b_3.mcap'
+    last.write_bytes(last.read_bytes()[:_mcap_summary(last).chunk_indexes[0].chunk_start_offset
+                                       + _mcap_summary(last).chunk_indexes[0].chunk_length])
+    result = bags.recover_bag(bag)
+    assert result.missing == [('b_1.mcap', 2000)]
+    assert [Path(f).name for f in bags.bag_info(bag)['files']] == [
+        'b_0.mcap', 'b_2.mcap', 'b_3.mcap']
+    assert bags.load_bag(bag).data == [pressures(store, i) for i in
+                                       (*range(2000), *range(4000, 7000))]
 
 
 def test_recover_keeps_no_compression(store, tmp_path):

@@ -62,16 +62,17 @@ def test_record_sim_node(node_process, tmp_path_factory):
     assert [stamp_ns(m.header.stamp) for m in decoded] == stamps
 
 
-def resumed_player(node_process, probe, topic: str, *params):
-    """bag_play started paused and resumed once the probe has discovered its publisher of
-    `topic` (and 0.5 s more for the match to complete both ways): no message is sent before the
-    probe's subscription is matched, however slowly the processes start."""
+def resumed_player(node_process, probe, topic: str, *params, name: str = 'bag_play'):
+    """bag_play (node `name`) started paused and resumed once the probe has discovered its
+    publisher of `topic` (and 0.5 s more for the match to complete both ways): no message is
+    sent before the probe's subscription is matched, however slowly the processes start (a
+    fixed delay is not enough on a loaded machine)."""
     from std_srvs.srv import Trigger
     player = node_process('bag_play', 'pam_driver', *params, '-p', 'start_paused:=true',
-                          '-p', 'delay:=0.0')
+                          '-p', 'delay:=0.0', '-r', f'__node:={name}')
     player.wait_for(lambda: probe.node.count_publishers(topic) > 0, 30.0, 'the publisher')
     time.sleep(0.5)
-    client = probe.client(Trigger, '/bag_play/resume')
+    client = probe.client(Trigger, f'/{name}/resume')
     assert client.wait_for_service(timeout_sec=30.0), player.stderr
     future = client.call_async(Trigger.Request())
     assert wait_until(future.done, 10.0) and future.result().success, 'no answer from ~/resume'
@@ -187,7 +188,7 @@ def test_bag_info_prints_counts():
     assert 'zstd' in out.stdout and 'Duration:' in out.stdout
     bad = subprocess.run([executable('pam-bag-info', 'pam_driver'), str(bag.parent / 'nope')],
                          capture_output=True, text=True, timeout=30)
-    assert bad.returncode == 1 and 'no such bag directory' in bad.stderr
+    assert bad.returncode == 2 and 'no such bag directory' in bad.stderr
 
 
 # ------------------------------------------------------------- bag_play options on a small bag
@@ -220,8 +221,10 @@ def test_rate_scales_the_schedule(node_process, probe, small_bag):
     """Two players at once, rates 1 and 2: the receive span at rate 2 is half the other."""
     rates = (1.0, 2.0)
     got = [pressures(probe, f'/rate{i}/pressures') for i in range(len(rates))]
-    players = [play(node_process, small_bag, f'rate:={r}', f'remap:=/pam/pressures:=/rate{i}/'
-                    'pressures', name=f'play{i}') for i, r in enumerate(rates)]
+    players = [resumed_player(node_process, probe, f'/rate{i}/pressures', '-p',
+                              f'bag:={small_bag}', '-p', f'rate:={r}', '-p',
+                              f'remap:=/pam/pressures:=/rate{i}/pressures', name=f'play{i}')
+               for i, r in enumerate(rates)]
     spans = []
     for player, received in zip(players, got):
         player.wait_for(lambda received=received: len(received) >= N, 30.0, f'{N} messages')
@@ -247,7 +250,8 @@ def test_loop_plays_again_after_the_end(node_process, probe, small_bag):
 
 def test_start_offset_starts_at_the_message_at_the_offset(node_process, probe, small_bag):
     got = pressures(probe)
-    player = play(node_process, small_bag, 'start_offset:=1.0', 'rate:=4.0')
+    player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={small_bag}',
+                            '-p', 'start_offset:=1.0', '-p', 'rate:=4.0')
     assert player.wait_exit(30.0) == 0, player.stderr
     first = round(1.0e9 / PERIOD)
     wait_until(lambda: len(got) >= N - first, 5.0)
@@ -305,17 +309,20 @@ def test_every_message_arrives_though_the_player_exits_at_once(node_process, pro
 
 def test_a_damaged_chunk_is_reported_after_playing_what_precedes_it(node_process, probe,
                                                                     tmp_path):
-    """A complete file whose chunk 20 (of 60, one message each) is garbage passes the checks
-    at start; the player plays messages 0-19, then says which file is damaged, exit 1."""
-    from test_bags_lib import damaged_chunk_bag, write_bag
+    """A complete file whose chunk 20 (of 60, one message each) has 8 bytes flipped where zstd
+    still decompresses (only its CRC shows it) passes the checks at start; the player plays
+    messages 0-19, then names the file and the chunk, exit 2 (bad input)."""
+    from test_bags_lib import write_bag
     from pam_driver.bags import make_typestore
-    full = tmp_path / 'full'
-    write_bag(make_typestore(), full, n=60, chunk_interval=0.0)
-    bag = damaged_chunk_bag(full, tmp_path / 'damaged' / 'full', 20)
+    from pam_driver.testing import damage_chunk
+    bag = tmp_path / 'full'
+    write_bag(make_typestore(), bag, n=60, chunk_interval=0.0)
+    damage_chunk(bag / 'full.mcap', 20)
     got = pressures(probe)
     player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={bag}')
-    assert player.wait_exit(30.0) == 1, player.stderr
-    assert 'full.mcap: corrupt data after 20 messages' in player.stderr, player.stderr
+    assert player.wait_exit(30.0) == 2, player.stderr
+    assert ('full.mcap: corrupt data after 20 messages: full.mcap: chunk 20 at byte'
+            in player.stderr and 'CRC mismatch' in player.stderr), player.stderr
     wait_until(lambda: len(got) >= 20, 5.0)
     assert [index(m) for m in got.messages()] == list(range(20))
 
