@@ -66,7 +66,13 @@ finish() {
   sleep 0.5  # the last messages reach the recorder
   kill -INT "$REC"; wait "$REC" || { echo "bag_record failed:"; cat "$LOGDIR/$NAME.record.log"; exit 1; }
   cleanup
-  pam-bag-info "$ROOT/bags/$NAME"
+  local report
+  report="$(pam-bag-info --verify "$ROOT/bags/$NAME")"   # every chunk read, its CRC checked
+  echo "$report"
+  if grep -q '(no CRC' <<<"$report"; then
+    echo "error: bags/$NAME has chunks without a CRC (is bag_record installed? make setup)" >&2
+    exit 1
+  fi
   local f size
   for f in "$ROOT/bags/$NAME"/*.mcap; do
     size="$(stat -c %s "$f")"

@@ -60,6 +60,8 @@ def test_record_sim_node(node_process, tmp_path_factory):
             f, decoder_factories=[DecoderFactory()]).iter_decoded_messages()
             if ch.topic == '/pam/pressures']
     assert [stamp_ns(m.header.stamp) for m in decoded] == stamps
+    from test_bags_lib import assert_crcs
+    assert_crcs(out / 'run.mcap')     # chunk, data section and summary CRCs
 
 
 def resumed_player(node_process, probe, topic: str, *params, name: str = 'bag_play'):

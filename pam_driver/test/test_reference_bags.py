@@ -97,3 +97,12 @@ def test_mcap_ros2_decodes_from_the_embedded_schemas_and_the_structure_is_jazzys
     assert {t['name']: t['count'] for t in info['topics']} == stats
     assert info['version'] == 9 and info['storage'] == 'mcap' and info['ros_distro'] == 'jazzy'
     assert embedded['message_count'] == sum(stats.values())   # the last file's: the whole bag
+
+
+def test_every_chunk_and_file_carries_its_crc(bag):
+    """Recorded by bag_record with CRCs (chunks, data section, summary; issue 13): verify_bag
+    reads every chunk and finds every CRC present and matching."""
+    checks = bags.verify_bag(bag)
+    assert [p for check in checks for p in check.problems] == []
+    for check in checks:
+        assert check.chunks and check.chunks_with_crc == check.chunks and check.data_crc, check
