@@ -9,7 +9,9 @@ Run `pi_node --help` for the parameters. Topics resolve under the node namespace
     valve_command     pam_interfaces/ValveCommand      published once per feedback sample, with
                                                        the feedback's stamp
     controller_state  pam_interfaces/ControllerState   published with every command
-    /diagnostics      diagnostic_msgs/DiagnosticArray  about 1 Hz
+    /diagnostics      diagnostic_msgs/DiagnosticArray  about 1 Hz; with the estimate's sample
+                                                       counter: samples lost (WARN over
+                                                       lost_samples_warn_ratio in the period)
 Service ~/enable (std_srvs/SetBool): false sends the valves to safe_command and holds them there.
 No feedback for feedback_timeout s (wall clock) also sends safe_command, and /diagnostics says
 so. Gains, limits and the anti-windup scheme can be changed at run time (ros2 param set); bad
@@ -31,8 +33,11 @@ from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement
 
 from pam_driver.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_driver.executors import run_node
+from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_command,
                                     declare_parameters, merge_overrides, usage_text, wants_help)
+from pam_driver.sample_gaps import WARN_RATIO_PARAM, SampleGaps
+from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
 from .pi import ANTI_WINDUP, PiGains, validate_gains
@@ -79,6 +84,7 @@ PARAMETERS = (
               'Valve voltages when disabled or without feedback: by default both valves at beta '
               '(equal co-contraction, the joint rests near 0 deg).'),
     ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),
+    WARN_RATIO_PARAM,
 )
 SUMMARY = [
     'Sensor-less PI controller (pam_controller): u1 = beta + Kp e + I, u2 = beta - Kp e - I on',
@@ -116,8 +122,14 @@ class PiNode(Node):
         self.values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
                                                             declare_parameters(self, PARAMETERS)))
         self.loop = build_loop(self.values)
-        self.command_pub = self.create_publisher(ValveCommand, 'valve_command', QOS)
-        self.state_pub = self.create_publisher(ControllerState, 'controller_state', QOS)
+        self.gaps = SampleGaps()              # of the estimates' sample counter
+        self._log_reference = ThrottledLog(self.get_logger(), 1.0)
+        self.guard = FiniteGuard(self.get_logger())
+        safe = dict(zip(('u1', 'u2'), self.loop.safe_command))
+        self.command_pub = self.guard.wrap(
+            self.create_publisher(ValveCommand, 'valve_command', QOS), safe=safe, whole=True)
+        self.state_pub = self.guard.wrap(
+            self.create_publisher(ControllerState, 'controller_state', QOS), safe=safe)
         if self.values['feedback'] == 'estimate':
             self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
         else:
@@ -129,11 +141,14 @@ class PiNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: PI controller',
                                                 'pam-pi', self._report)
+        self.diagnostics.add_check(self.guard.report)
+        self.diagnostics.add_check(self._clamp_report)
         self.create_timer(0.05, self._watchdog)
         self._last_feedback = None            # monotonic time of the last feedback
         self._stale = False
         self.commands = 0
         self.saturated = 0
+        self._reported_clamps = 0
         self.get_logger().info(
             f"{MODE_NAMES[self.loop.mode]} mode, feedback {self.values['feedback']}; gains angle "
             f"kp {self.values['kp_angle']:g} V/rad ki {self.values['ki_angle']:g} V/(rad s), "
@@ -144,6 +159,7 @@ class PiNode(Node):
 
     # --- messages -------------------------------------------------------------------------------
     def _on_estimate(self, msg: JointEstimate) -> None:
+        self.gaps.update(msg.sample)
         value = msg.angle if self.loop.mode == ANGLE else msg.torque
         self._control(value, msg.header)
 
@@ -178,7 +194,7 @@ class PiNode(Node):
         if message.startswith('mode'):
             self.get_logger().info(message)
         elif message:
-            self.get_logger().warn(message)
+            self._log_reference(message)
 
     def _on_enable(self, request, response):
         self.loop.set_enabled(request.data)
@@ -221,6 +237,15 @@ class PiNode(Node):
             f'{p.name}={p.value}' for p in params))
         return SetParametersResult(successful=True)
 
+    def _clamp_report(self):
+        """The references clamped to the envelope: WARN while some were in the last period."""
+        clamped = self.loop.clamped_references - self._reported_clamps
+        self._reported_clamps += clamped
+        problem = (f"{clamped} references outside the rig's envelope clamped to it in the last "
+                   'period') if clamped else ''
+        return WARN, problem, {'references clamped to the envelope':
+                               self.loop.clamped_references}
+
     def _report(self):
         age = (time.monotonic() - self._last_feedback) if self._last_feedback else math.inf
         values = {'mode': MODE_NAMES[self.loop.mode], 'enabled': self.loop.enabled,
@@ -229,13 +254,17 @@ class PiNode(Node):
                   'integral term (V)': self.loop.controller.i_term,
                   'time since feedback (s)': age, 'implausible dt (skipped)': self.loop.bad_dt,
                   'non-finite feedback': self.loop.bad_feedback,
-                  'feedback source': self.values['feedback']}
+                  'feedback source': self.values['feedback'], **self.gaps.values(),
+                  SUPPRESSED_KEY: self._log_reference.suppressed}
+        lost = self.gaps.problem(self.values['lost_samples_warn_ratio'])
         if not self.loop.enabled:
             return WARN, 'disabled: valves at safe_command', values
         if self._last_feedback is None:
             return WARN, 'waiting for feedback', values
         if self._stale:
             return WARN, f'no feedback for {age:.2f} s: valves at safe_command', values
+        if lost:
+            return WARN, f'feedback samples lost: {lost}', values
         return OK, 'controlling', values
 
 

@@ -21,16 +21,20 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from pam_interfaces.msg import Reference
 
+from pam_driver.diagnostics import OK, DiagnosticsPublisher
 from pam_driver.executors import run_node
+from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import (ParamSpec, check_all, declare_parameters, fail,
                                     merge_overrides, usage_text, wants_help)
+
+from .control_loop import ENVELOPE, MODE_NAMES
 
 NODE_NAME = 'reference_node'
 DEFAULT_NAMESPACE = '/pam'
 QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                  depth=10)
 PROFILES = ('steps', 'ramp', 'sine', 'constant')
-LIMITS = {'angle': math.radians(25.0), 'torque': 3.0}   # the rig's envelope (MODEL.md sec. 1)
+LIMITS = {MODE_NAMES[mode]: limit for mode, limit in ENVELOPE.items()}   # rad, N m
 
 PARAMETERS = (
     ParamSpec('mode', 'angle', 'string', '', 'angle (rad) or torque (N m).',
@@ -95,9 +99,14 @@ class ReferenceNode(Node):
                                                    declare_parameters(self, PARAMETERS)))
         self.mode = Reference.ANGLE if self.values['mode'] == 'angle' else Reference.TORQUE
         self.steps = step_levels(self.values) if self.values['profile'] == 'steps' else None
-        self.publisher = self.create_publisher(Reference, 'reference', QOS)
+        self.guard = FiniteGuard(self.get_logger())
+        self.publisher = self.guard.wrap(self.create_publisher(Reference, 'reference', QOS),
+                                         hold=True)
         self.start = None
+        self.published = 0
         self.create_timer(1.0 / self.values['rate'], self._tick)
+        DiagnosticsPublisher(self, f'{self.get_name()}: reference profile', 'pam-reference',
+                             self._report).add_check(self.guard.report)
         unit = 'rad' if self.mode == Reference.ANGLE else 'N m'
         self.get_logger().info(
             f"{self.values['profile']} profile, {self.values['mode']} mode, amplitude "
@@ -113,6 +122,16 @@ class ReferenceNode(Node):
         msg = Reference(mode=self.mode, value=profile_value(self.values, self.steps, t))
         msg.header.stamp = now.to_msg()
         self.publisher.publish(msg)
+        self.published += 1
+        self.last_value = msg.value
+
+    def _report(self):
+        values = {'profile': self.values['profile'], 'mode': self.values['mode'],
+                  'references published': self.published}
+        if not self.published:
+            return OK, 'starting', values
+        return OK, f"{self.values['profile']}: {self.last_value:.4g} " \
+                   f"{'rad' if self.mode == Reference.ANGLE else 'N m'}", values
 
 
 def main(args=None) -> int:

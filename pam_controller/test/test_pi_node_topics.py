@@ -85,3 +85,56 @@ def test_pi_node_commands_gains_enable_timeout(node_process, probe):
     state = states.messages()[-1]
     assert state.mode == Reference.TORQUE and state.error == 0.5
     assert pi.alive()
+
+
+def test_a_huge_reference_is_clamped_and_nothing_non_finite_is_published(node_process, probe):
+    """The issue: with back-calculation, one reference of 1e308 gave (nan, nan) commands until
+    ~/enable false -> true, and /diagnostics said OK. Now the reference is clamped to the
+    rig's envelope (+-25 deg), counted on /diagnostics (WARN), and every field stays finite."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from pam_driver.diagnostics import WARN, status_values
+    from pam_driver.testing import diagnostic_statuses
+
+    pi = node_process('pi_node', 'pam_controller', '-p', 'anti_windup:=back_calculation',
+                      '-p', 'initial_reference:=0.1')
+    commands = probe.subscribe(ValveCommand, '/pam/valve_command')
+    states = probe.subscribe(ControllerState, '/pam/controller_state')
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics')
+    estimates = probe.publisher(JointEstimate, '/pam/estimate')
+    references = probe.publisher(Reference, '/pam/reference')
+    assert wait_until(lambda: estimates.get_subscription_count() > 0
+                      and references.get_subscription_count() > 0, 60.0), pi.stderr
+    step = [0]
+
+    def feed(n):
+        for _ in range(n):
+            step[0] += 1
+            msg = JointEstimate(angle=0.0)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = 1 + step[0] // 1000, \
+                (step[0] % 1000) * 1_000_000
+            estimates.publish(msg)
+            time.sleep(0.001)
+
+    feed(20)
+    pi.wait_for(lambda: len(commands) >= 20, 20.0, 'commands before the huge reference')
+    for huge in (1e308, 5e306):
+        references.publish(Reference(mode=Reference.ANGLE, value=huge))
+        pi.wait_for(lambda: 'clamped' in pi.stderr + pi.stdout, 10.0, 'the clamp warning')
+        feed(100)
+    references.publish(Reference(mode=Reference.ANGLE, value=0.05))     # a sane one again
+    feed(300)
+    pi.wait_for(lambda: len(states) >= 420, 20.0, 'every command and state')
+    fields = ('reference', 'feedback', 'error', 'p_term', 'i_term', 'u1', 'u2')
+    for state in states.messages():
+        assert all(math.isfinite(getattr(state, f)) for f in fields), state
+    assert all(math.isfinite(c.u1) and math.isfinite(c.u2) for c in commands.messages())
+    assert max(s.reference for s in states.messages()) == math.radians(25.0)
+    last = states.messages()[-1]
+    assert last.reference == 0.05 and last.error == 0.05 and pi.alive()
+
+    def clamp_warning():
+        return [s for s in diagnostic_statuses(diagnostics, 'pi_node')
+                if s.level == WARN and 'envelope' in s.message]
+    pi.wait_for(clamp_warning, 10.0, 'a WARN about the clamped references')
+    assert status_values(clamp_warning()[-1])['references clamped to the envelope'] == '2'

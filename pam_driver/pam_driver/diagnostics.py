@@ -105,7 +105,8 @@ class DiagnosticsPublisher:
     """Publishes one status on /diagnostics every `period` s from `callback()`.
 
     callback() returns (level, message, values). The timer uses the node's clock and executor;
-    call publish_now() to send a status outside the period (e.g. at shutdown).
+    call publish_now() to send a status outside the period (e.g. at shutdown). add_check() adds
+    a check shared by nodes (e.g. FiniteGuard.report) to every status.
     """
 
     def __init__(self, node, name: str, hardware_id: str, callback: ReportCallback,
@@ -116,14 +117,28 @@ class DiagnosticsPublisher:
         self.name = name
         self.hardware_id = hardware_id
         self._callback = callback
+        self._checks: list[ReportCallback] = []
         self.period = period
         self._publisher = node.create_publisher(DiagnosticArray, topic, qos_depth)
         self._timer = node.create_timer(period, self.publish_now)
 
+    def add_check(self, check: ReportCallback) -> None:
+        """check() -> (level, problem, values), merged into every status: its values appended,
+        and when problem is not empty, problem appended to the message and the level raised to
+        its level if that is worse."""
+        self._checks.append(check)
+
     def build(self) -> DiagnosticStatus:
-        """Call the callback and build its status (ERROR if the callback fails)."""
+        """Call the callback and the checks and build the status (ERROR if one fails)."""
         try:
             level, message, values = self._callback()
+            level, values = level_from(level), dict(values or {})
+            for check in self._checks:
+                check_level, problem, check_values = check()
+                values.update(check_values)
+                if problem:
+                    message = f'{message}; {problem}' if message else problem
+                    level = max(level, level_from(check_level))
             return make_status(self.name, self.hardware_id, level, message, values)
         except Exception as exc:  # noqa: BLE001 - a report must never take the node down
             return make_status(self.name, self.hardware_id, ERROR,

@@ -5,7 +5,9 @@ It talks to the DAQ board over a serial port with the protocol of pam_driver/PRO
 (pam_driver.calibration). Run `driver_node --help` for the parameters.
 
 Topics (same contract as sim_node; relative names under '/pam' by default): publishes
-`pressures` per sample (1 kHz, stamped with the node clock on receipt) and, when the board
+`pressures` per sample (1 kHz, stamped with the node clock on receipt; `sample` counts the
+device's ticks, 1 for the first sample received, so a SAMPLE frame lost on the line or the stream
+down while reconnecting is a gap downstream: daq_protocol.TickCounter) and, when the board
 reports an encoder and a torque meter fitted, `joint_measured` (angle from the encoder, torque
 from the torque meter, angular velocity by finite difference of the angle); subscribes
 `valve_command`; publishes `~/applied_command` (the voltages the valves actually get, on each
@@ -26,7 +28,11 @@ the port is closed). It goes back to ARMED only through ~/arm, which is refused 
 not connected or a sensor fault persists; even then the valves stay at safe_output until the next
 valid command. At shutdown (SIGINT, SIGTERM) the driver sends safe_output before closing the port.
 The port is opened for exclusive use (flock): a second driver on it is refused. The board itself
-vents both valves when no host frame arrives for 250 ms (its own watchdog).
+vents both valves when no host frame arrives for 250 ms (its own watchdog); the SAMPLE status
+bit and the DEVICE_HEARTBEAT trip counter report it, and /diagnostics counts these 'board vents'
+(daq_protocol.BoardVents): a vent in the last window is an ERROR while armed (the commanded
+output was not applied), a WARN otherwise. The non-finite command warning is throttled to one
+line a second, the lines left out counted on /diagnostics.
 """
 
 from __future__ import annotations
@@ -46,7 +52,9 @@ from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
 from pam_driver.node_params import cli_preamble
 from pam_driver.executors import run_node
+from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import declare_parameters
+from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog
 from pam_driver.timing import RateStatistics
 
 NODE_NAME = 'driver_node'
@@ -114,6 +122,9 @@ class DriverNode(Node):
         self._inject_at = None               # monotonic time of the injected internal error
         self._device = None
         self._device_heartbeat = None
+        self._ticks = proto.TickCounter()    # the device's tick -> Pressures.sample
+        self._vents = proto.BoardVents()
+        self._log_nonfinite = ThrottledLog(self.get_logger(), LOG_THROTTLE)
         self._samples = 0
         self._protocol_errors = 0
         self._internal_errors = 0
@@ -124,15 +135,21 @@ class DriverNode(Node):
         self._reported = {}
         self._prev_angle = None
 
-        self._pub_pressures = self.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
-        self._pub_joint = self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS)
-        self._pub_applied = self.create_publisher(ValveCommand, '~/applied_command', 10)
+        self._guard = FiniteGuard(self.get_logger())
+        self._pub_pressures = self._guard.wrap(
+            self.create_publisher(Pressures, 'pressures', SAMPLE_QOS), hold=True)
+        self._pub_joint = self._guard.wrap(
+            self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS), hold=True)
+        self._pub_applied = self._guard.wrap(
+            self.create_publisher(ValveCommand, '~/applied_command', 10),
+            safe=dict(zip(('u1', 'u2'), self.config['safe_output'])), whole=True)
         self._sub = self.create_subscription(ValveCommand, 'valve_command', self._on_command,
                                              SAMPLE_QOS)
         self.create_service(Trigger, '~/arm', self._on_arm)
         self.create_service(Trigger, '~/estop', self._on_estop)
         self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: DAQ board',
                                                  HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
+        self._diagnostics.add_check(self._guard.report)
         self.get_logger().info(
             f"port {self.config['port']} at {self.config['baud']} baud, calibration "
             f'{self.cal.source}; watchdog {self.config["watchdog_timeout"] * 1e3:g} ms, safe '
@@ -199,8 +216,7 @@ class DriverNode(Node):
         if not all(math.isfinite(v) for v in u):
             with self._lock:
                 self._commands_nonfinite += 1
-            self.get_logger().warning(f'non-finite valve_command {u} ignored',
-                                      throttle_duration_sec=LOG_THROTTLE)
+            self._log_nonfinite(f'non-finite valve_command {u} ignored')
             return
         low, high = self.config['valve_limits']
         clipped = tuple(min(max(v, low), high) for v in u)
@@ -397,7 +413,10 @@ class DriverNode(Node):
                             self._on_sample(proto.parse_sample(frame), now)
                             last_sample = now
                         elif frame.type == proto.DEVICE_HEARTBEAT:
-                            self._device_heartbeat = frame.fields()
+                            heartbeat = frame.fields()
+                            with self._lock:
+                                self._device_heartbeat = heartbeat
+                                self._vents.on_heartbeat(heartbeat[2])
                         elif frame.type == proto.HELLO_ACK:
                             pass
                         else:
@@ -437,6 +456,7 @@ class DriverNode(Node):
         msg.header.stamp = stamp
         msg.header.frame_id = self._frame_id
         msg.p1, msg.p2 = p
+        msg.sample = self._ticks.update(s.tick)
         self._pub_pressures.publish(msg)
         info = self._device
         if info is not None and info.has_encoder and info.has_torque:
@@ -453,6 +473,7 @@ class DriverNode(Node):
         self._stats.record(0.0)
         with self._lock:
             self._samples += 1
+            self._vents.on_sample(s.status)
 
     def _check_sensors(self, counts, pressures, now: float) -> None:
         low, high = self.config['pressure_limits']
@@ -542,6 +563,11 @@ class DriverNode(Node):
                 'non-finite commands': self._commands_nonfinite,
                 'commands ignored (safe)': self._commands_ignored,
                 'last error': self._last_error or 'none',
+                'board vents': self._vents.count,
+                'board vented now': self._vents.vented,
+                'last sample counter': self._ticks.value,
+                'device restarts (tick went back)': self._ticks.restarts,
+                SUPPRESSED_KEY: self._log_nonfinite.suppressed,
             }
             if self._device_heartbeat is not None:
                 rx, crc, trips, _ = self._device_heartbeat
@@ -550,8 +576,9 @@ class DriverNode(Node):
             connected, armed, fault = self._connected, self._armed, self._sensor_fault
         counters = ('crc errors', 'garbage bytes', 'lost frames', 'protocol errors',
                     'commands clipped', 'non-finite commands', 'disconnects')
+        vents = values['board vents'] - self._reported.get('board vents', 0)
         new = {k: values[k] - self._reported.get(k, 0) for k in counters}
-        self._reported = {k: values[k] for k in counters}
+        self._reported = {k: values[k] for k in (*counters, 'board vents')}
         problems = []
         level = OK
         if not connected and values['device refused'] != 'none':
@@ -566,6 +593,13 @@ class DriverNode(Node):
         if not armed:
             level = max(level, WARN)
             problems.append(f'safe output: {self._safe_reason}')
+        if vents:
+            # the valves were at 0 V for a while whatever the driver commanded: while armed,
+            # the control was not applied
+            level = max(level, ERROR if armed else WARN)
+            problems.append(f'board vented {vents} times in the last window '
+                            f"({values['board vents']} in all): its own watchdog got no host "
+                            'frame for its watchdog time')
         recent = [f'{n} {k}' for k, n in new.items() if n]
         if recent:
             level = max(level, WARN)

@@ -21,6 +21,7 @@ from rclpy.task import Future
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 from pam_driver.executors import run_node
+from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 from pam_driver.run_recorder import RunRecorder
@@ -109,7 +110,10 @@ class ProfilePlayer(Node):
         self.started = False
         self._created = self.get_clock().now()
         self._drain_timer = None
-        self.command_pub = self.create_publisher(ValveCommand, 'valve_command', QOS)
+        self.guard = FiniteGuard(self.get_logger())      # non-finite -> 0 V (vent), as sim_node
+        self.command_pub = self.guard.wrap(
+            self.create_publisher(ValveCommand, 'valve_command', QOS),
+            safe={'u1': 0.0, 'u2': 0.0}, whole=True)
         self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
         self.create_subscription(JointMeasurement, 'joint_measured', self._on_truth, QOS)
         self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
@@ -178,6 +182,9 @@ class ProfilePlayer(Node):
             return 1
         for line in self.recorder.summary(self.values['rate']):
             print(line, flush=True)
+        for topic, count in self.guard.counts.items():
+            if count:
+                print(f'non-finite values substituted on {topic}: {count}', flush=True)
         if self.values['save']:
             path = self.recorder.save(self.values['save'], 1.0 / self.values['rate'])
             print(f'saved the run to {path}', flush=True)

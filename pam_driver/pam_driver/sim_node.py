@@ -7,7 +7,8 @@ Topics (relative names resolve under the node namespace, '/pam' unless remapped 
 `--ros-args -r __ns:=/other`):
 
     pressures       pam_interfaces/Pressures         published, one per sample (1 kHz by default):
-                                                     measured P1, P2 (Pa abs) with sensor noise
+                                                     measured P1, P2 (Pa abs) with sensor noise;
+                                                     sample = the plant's step k + 1 (1, 2, ...)
     joint_measured  pam_interfaces/JointMeasurement  published with every sample: ground truth
                                                      angle (rad), angular velocity (rad/s) and
                                                      true torque (N m)
@@ -35,6 +36,12 @@ diagnostics window) are reported on /diagnostics. Subscriptions and timers are s
 rclpy.experimental.EventsExecutor (SingleThreadedExecutor if that is unavailable), in bounded
 slices (see pam_driver.executors).
 
+Sample counter (Pressures.sample): k + 1 for the sample after k model steps, in both timings. A
+re-published lockstep sample keeps its counter (a repeat); a realtime period SKIPPED after a
+stall is no sample (the plant did not step: it is counted as a skipped period, not as a gap); a
+non-finite sample suppressed leaves a gap (a sample the rig took and nobody got). So a gap seen
+downstream is a sample lost on its way.
+
 Timing 'lockstep': sample k is stamped with simulated time t_k = k/rate. The plant steps k -> k+1
 only when a command for step k arrives: a ValveCommand whose header.stamp >= t_k (a zero stamp
 means "for the current step"); the node applies it, steps, and publishes sample k+1. A command
@@ -50,8 +57,10 @@ input and never publishes a non-finite sample.
 
 /diagnostics: one DiagnosticStatus 'sim_node: simulated rig' (hardware_id 'simulated-pam-rig')
 with the timing, target and achieved rate, late steps, skipped periods, max lateness (ms),
-samples published, commands received, non-finite / out-of-range commands, past commands
-ignored, last command u1/u2 (V, as applied), joint mode and plant set. Level ERROR if the
+samples published, last sample counter, commands received, non-finite / out-of-range commands,
+past commands ignored, last command u1/u2 (V, as applied), joint mode and plant set, log lines
+suppressed (the warnings on the sample and command paths are throttled to one a second each, the
+lines left out counted, pam_driver.throttled_log). Level ERROR if the
 sampling thread failed or a non-finite sample was ever suppressed; WARN if, in the last window,
 bad or past commands arrived, or (realtime) the achieved rate was off by more than 5 % or more
 than 5 % of the samples were late steps; OK otherwise.
@@ -74,8 +83,10 @@ from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.executors import run_node
+from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import cli_preamble, declare_parameters
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
+from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog, suppressed_total
 from pam_driver.timing import DeadlineSchedule, RateStatistics
 
 NODE_NAME = 'sim_node'
@@ -122,6 +133,10 @@ class SimNode(Node):
         self._reported = {'bad': 0, 'past': 0}
         self._current = None        # lockstep: the messages of the current sample
         self._last_publish = 0.0    # monotonic time of the last (re)publication
+        logger = self.get_logger()
+        self._log_nonfinite = ThrottledLog(logger, LOG_THROTTLE, level='error')
+        self._log_past = ThrottledLog(logger, LOG_THROTTLE)
+        self._log_bad = ThrottledLog(logger, LOG_THROTTLE)
 
     # ------------------------------------------------------------------ set-up
     def configure(self) -> None:
@@ -143,14 +158,18 @@ class SimNode(Node):
         self._period_ns = 1e9 / self.config.rate
         self._stats = RateStatistics(1.0 / self.config.rate, time.monotonic())
 
-        self._pub_pressures = self.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
-        self._pub_joint = self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS)
+        self._guard = FiniteGuard(self.get_logger())    # non-finite -> the last finite value
+        self._pub_pressures = self._guard.wrap(
+            self.create_publisher(Pressures, 'pressures', SAMPLE_QOS), hold=True)
+        self._pub_joint = self._guard.wrap(
+            self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS), hold=True)
         self._pub_clock = (self.create_publisher(Clock, '/clock', CLOCK_QOS)
                            if values['publish_clock'] else None)
         self._sub_command = self.create_subscription(ValveCommand, 'valve_command',
                                                      self._on_command, SAMPLE_QOS)
         self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: simulated rig',
                                                  HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
+        self._diagnostics.add_check(self._guard.report)
         for line in self.config.summary:
             self.get_logger().info(line)
         self.get_logger().info(
@@ -198,14 +217,15 @@ class SimNode(Node):
                   float(sample.x[1]), float(sample.torque))
         if not all(math.isfinite(v) for v in values):
             self._nonfinite_samples += 1
-            self.get_logger().error(f'non-finite sample at step {self._rig.k} suppressed: '
-                                    f'state {list(sample.x)}', throttle_duration_sec=LOG_THROTTLE)
+            self._log_nonfinite(f'non-finite sample at step {self._rig.k} suppressed: state '
+                                f'{list(sample.x)}')
             return None
         stamp = _time_msg(stamp_ns)
         pressures = Pressures()
         pressures.header.stamp = stamp
         pressures.header.frame_id = self._frame_id
         pressures.p1, pressures.p2 = values[0], values[1]
+        pressures.sample = self._rig.k + 1
         joint = JointMeasurement()
         joint.header.stamp = stamp
         joint.header.frame_id = self._frame_id
@@ -281,16 +301,14 @@ class SimNode(Node):
             self._stats.record(0.0)
             self._publish(messages)
         if past is not None:
-            self.get_logger().warning(
-                f'ignored a valve_command from the past (stamp {stamp / 1e9:.6f} s < t_k = '
-                f'{t_k / 1e9:.6f} s of step {k}); {past} so far',
-                throttle_duration_sec=LOG_THROTTLE)
+            self._log_past(f'ignored a valve_command from the past (stamp {stamp / 1e9:.6f} s '
+                           f'< t_k = {t_k / 1e9:.6f} s of step {k}); {past} so far')
         if not ok:
-            self.get_logger().warning(
+            self._log_bad(
                 f'bad valve_command u1={msg.u1!r} V, u2={msg.u2!r} V sanitised to '
                 f'({self._rig.u[0]:g}, {self._rig.u[1]:g}) V (non-finite -> 0 V vent, else '
                 f'clipped to [0, 10] V); so far {non_finite} non-finite, {out_of_range} '
-                'out-of-range voltages', throttle_duration_sec=LOG_THROTTLE)
+                'out-of-range voltages')
 
     def _on_lockstep_watchdog(self) -> None:
         timeout = self.config.values['lockstep_timeout']
@@ -332,6 +350,9 @@ class SimNode(Node):
                 'plant parameters': self.config.values['plant_parameters'],
                 'mismatch': self.config.values['mismatch'] or 'none',
                 'non-finite samples suppressed': self._nonfinite_samples,
+                'last sample counter': rig.k + 1,
+                SUPPRESSED_KEY: suppressed_total((self._log_nonfinite, self._log_past,
+                                                  self._log_bad)),
             }
             if self._lockstep:
                 values['republished samples'] = self._republished

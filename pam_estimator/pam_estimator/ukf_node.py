@@ -6,13 +6,18 @@ remapped with `--ros-args -r __ns:=/other`):
     pressures      pam_interfaces/Pressures        subscribed: one filter step per sample
     valve_command  pam_interfaces/ValveCommand     subscribed: held as u(k-1)
     estimate       pam_interfaces/JointEstimate    published for every sample, with the sample's
-                                                   stamp, covariance and filter health
+                                                   stamp and counter (sample), covariance and
+                                                   filter health
     /diagnostics   diagnostic_msgs/DiagnosticArray about 1 Hz: input rate, staleness, NIS,
-                                                   covariance trace, rejected samples, step time
+                                                   covariance trace, rejected samples, step time,
+                                                   samples lost (gaps in Pressures.sample; WARN
+                                                   over lost_samples_warn_ratio in the period)
 Service ~/reset (std_srvs/Trigger) restarts the filter from initial_state and P(0).
 QoS: reliable, keep last 100 (a 1 kHz stream across processes loses nothing with that depth).
 The compiled filter kernel is loaded (and compiled on the very first run) before the
 subscriptions are created, so the first samples are not stalled.
+Warnings on the 1 kHz path (bad commands, unusable samples, time going backwards) are throttled
+to one line a second each (pam_driver.throttled_log), the lines left out counted on /diagnostics.
 """
 
 from __future__ import annotations
@@ -28,7 +33,10 @@ from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.executors import run_node
+from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import declare_parameters, wants_help
+from pam_driver.sample_gaps import SampleGaps
+from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog, suppressed_total
 
 from .estimator_core import EstimatorCore
 from .ukf_config import PARAMETERS, build_config, usage_text
@@ -50,16 +58,23 @@ class UkfNode(Node):
         self.core = EstimatorCore(config.ukf, config.values['initial_command'])
         self.frame_id = config.values['frame_id']
         self.stale_timeout = config.values['stale_timeout']
+        self.lost_warn_ratio = config.values['lost_samples_warn_ratio']
+        self.gaps = SampleGaps()
+        logger = self.get_logger()
+        self._log_command, self._log_reset, self._log_rejected = (
+            ThrottledLog(logger, LOG_THROTTLE) for _ in range(3))
         for line in config.summary:
             self.get_logger().info(line)
         self._warm_up()
-        self.estimate_pub = self.create_publisher(JointEstimate, 'estimate', QOS)
+        self.guard = FiniteGuard(self.get_logger())      # non-finite -> the last finite value
+        self.estimate_pub = self.guard.wrap(
+            self.create_publisher(JointEstimate, 'estimate', QOS), hold=True)
         self.create_subscription(ValveCommand, 'valve_command', self._on_command, QOS)
         self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: UKF estimator',
                                                 'pam-ukf', self._report)
-        self._last_log = {}
+        self.diagnostics.add_check(self.guard.report)
         self.get_logger().info(
             f"estimating: {self.resolve_topic_name('pressures')} + "
             f"{self.resolve_topic_name('valve_command')} -> "
@@ -72,31 +87,24 @@ class UkfNode(Node):
         ukf.step(ukf.x[2:], self.core.u_prev)
         ukf.reset(x, P)
 
-    def _log_throttled(self, key: str, level: str, text: str) -> None:
-        now = self.get_clock().now().nanoseconds * 1e-9
-        if now - self._last_log.get(key, -math.inf) >= LOG_THROTTLE:
-            self._last_log[key] = now
-            getattr(self.get_logger(), level)(text)
-
     def _on_command(self, msg: ValveCommand) -> None:
         if not self.core.on_command(msg.u1, msg.u2):
-            self._log_throttled('command', 'warn',
-                                f'valve command ({msg.u1}, {msg.u2}) V outside [0, 10] or not '
-                                f'finite: used sanitised ({self.core.u_prev[0]:g}, '
-                                f'{self.core.u_prev[1]:g}) V ({self.core.bad_commands} so far)')
+            self._log_command(f'valve command ({msg.u1}, {msg.u2}) V outside [0, 10] or not '
+                              f'finite: used sanitised ({self.core.u_prev[0]:g}, '
+                              f'{self.core.u_prev[1]:g}) V ({self.core.bad_commands} so far)')
 
     def _on_pressures(self, msg: Pressures) -> None:
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self.gaps.update(msg.sample)
         event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns)
         if event.output is None:
             return
         if event.kind == 'reset':
-            self.get_logger().warn(event.message)
+            self._log_reset(event.message)
         out = event.output
         if out.update_skipped and self.core.ukf.rejected_samples:
-            self._log_throttled('rejected', 'warn',
-                                f'pressure sample ({msg.p1}, {msg.p2}) Pa not usable: update '
-                                f'skipped ({self.core.ukf.rejected_samples} rejected so far)')
+            self._log_rejected(f'pressure sample ({msg.p1}, {msg.p2}) Pa not usable: update '
+                               f'skipped ({self.core.ukf.rejected_samples} rejected so far)')
         est = JointEstimate()
         est.header.stamp = msg.header.stamp
         est.header.frame_id = self.frame_id
@@ -109,6 +117,7 @@ class UkfNode(Node):
         est.nis = float(out.nis)
         est.rejected_samples = self.core.ukf.rejected_samples + self.core.ukf.gated_samples
         est.update_skipped = bool(out.update_skipped)
+        est.sample = msg.sample
         self.estimate_pub.publish(est)
 
     def _on_reset(self, request, response):
@@ -141,13 +150,19 @@ class UkfNode(Node):
             'step time median (us)': median * 1e6,
             'step time max (us)': worst * 1e6,
             'joint mode': 'locked' if ukf.model.locked else 'free',
+            **self.gaps.values(),
+            SUPPRESSED_KEY: suppressed_total((self._log_command, self._log_reset,
+                                              self._log_rejected)),
         }
+        lost = self.gaps.problem(self.lost_warn_ratio)
         if core.samples == 0:
             return WARN, 'waiting for pressures', values
         if not math.isfinite(trace):
             return ERROR, 'covariance not finite', values
         if age > self.stale_timeout:
             return WARN, f'input stale: no pressures for {age:.2f} s', values
+        if lost:
+            return WARN, f'input samples lost: {lost}', values
         return OK, 'estimating', values
 
 
