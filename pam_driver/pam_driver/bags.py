@@ -188,7 +188,7 @@ def _patch_summary(data: bytearray, base: int, data_crc: int) -> None:
     and the Footer's summary_crc (from the summary's start to the Footer's summary_crc)."""
     summary_start = struct.unpack_from('<Q', data, len(data) - _FOOTER_TAIL - 16)[0]
     data_end = summary_start - base - _DATA_END_SIZE      # the DataEnd record precedes it
-    if not 0 <= data_end or data[data_end] != 0x0F:
+    if data_end < 0 or data[data_end] != 0x0F:
         raise BagWriteError(f'no DataEnd record before the summary at byte {summary_start}')
     _CRC.pack_into(data, data_end + 9, zlib.crc32(data[:data_end], data_crc))
     footer_crc = len(data) - _FOOTER_TAIL
@@ -590,13 +590,19 @@ class BagWriter:
 
 
 # ------------------------------------------------------------------------------- reading
-def check_bag(path) -> Path:
-    """The bag directory, after checking metadata.yaml and its .mcap files; BagError otherwise."""
+def bag_dir(path) -> Path:
+    """The bag directory `path` names (an .mcap file: its folder); BagError if it is none."""
     path = Path(path)
     if path.is_file() and path.suffix == '.mcap':
         path = path.parent
     if not path.is_dir():
         raise BagError(f'{path}: no such bag directory')
+    return path
+
+
+def check_bag(path) -> Path:
+    """The bag directory, after checking metadata.yaml and its .mcap files; BagError otherwise."""
+    path = bag_dir(path)
     for name in read_metadata(path)['relative_file_paths']:
         check_mcap(path / name)
     return path
@@ -658,11 +664,7 @@ def verify_bag(path, first_only: bool = False) -> list[FileCheck]:
     data section and summary CRCs), after the checks of check_mcap; a file metadata.yaml lists
     that is missing is a problem too. `first_only`: stop at the first problem. BagError if
     the bag directory or its metadata.yaml is unusable."""
-    path = Path(path)
-    if path.is_file() and path.suffix == '.mcap':
-        path = path.parent
-    if not path.is_dir():
-        raise BagError(f'{path}: no such bag directory')
+    path = bag_dir(path)
     info = read_metadata(path)
     start_ns = (info.get('starting_time') or {}).get('nanoseconds_since_epoch')
     checks = []
@@ -731,10 +733,7 @@ class BagSelection:
 
 def bag_files(path) -> list[Path]:
     """The .mcap files metadata.yaml lists, in order."""
-    from ruamel.yaml import YAML
-    info = YAML(typ='safe').load((Path(path) / METADATA).read_text())
-    return [Path(path) / name for name in
-            info['rosbag2_bagfile_information']['relative_file_paths']]
+    return [Path(path) / name for name in read_metadata(path)['relative_file_paths']]
 
 
 def open_bag(path, topics=None, start_offset: float = 0.0) -> BagSelection:
@@ -805,9 +804,8 @@ def embedded_metadata(mcap_path) -> dict:
 def bag_info(path) -> dict:
     """Topics, types, counts, duration, rates and compression of a bag (from its metadata and
     the MCAP summary)."""
-    from ruamel.yaml import YAML
     path = check_bag(path)
-    meta = YAML(typ='safe').load((path / METADATA).read_text())['rosbag2_bagfile_information']
+    meta = read_metadata(path)
     files = [path / f for f in meta['relative_file_paths']]
     duration = meta['duration']['nanoseconds'] * 1e-9
     chunk_compression = set()
@@ -957,11 +955,7 @@ def _find_damaged(path) -> tuple[Path, list, list]:
     """The bag directory, its .mcap files in order (as listed, then the others) and the
     (name, messages) of the files it lists that are missing, if it needs recovery; BagError
     otherwise."""
-    path = Path(path)
-    if path.is_file() and path.suffix == '.mcap':
-        path = path.parent
-    if not path.is_dir():
-        raise BagError(f'{path}: no such bag directory')
+    path = bag_dir(path)
     listed = _listed_files(path)
     order = {name: i for i, (name, _) in enumerate(listed)}
     mcaps = sorted(path.glob('*.mcap'), key=lambda p: (order.get(p.name, len(order)),
