@@ -1,0 +1,1096 @@
+#!/usr/bin/env python3
+"""Fault campaign: a table of bad inputs against live nodes, printed as
+case | expected | observed | deaths | non-finite | lost unreported | tracebacks.
+
+Every input topic (NaN, inf, huge values, stamps from the past, decreasing and zero stamps),
+run-time parameter changes (the rcl_interfaces SetParameters service `ros2 param set` uses: NaN,
+out of range, wrong types, unknown and read-only names), damaged copies of the reference bags
+(bytes flipped in a chunk, a truncated file, a split file or metadata.yaml missing) fed to every
+bag tool, malformed params files fed to every node and pam-bringup, every serial fault of
+pam-emulator against driver_node, and processes killed mid-run.
+
+The nodes run as real processes on an isolated ROS domain with localhost discovery; an rclpy
+probe in this process feeds their inputs (standing in for the rig, the estimator or the
+controller) and watches every output topic. Per case:
+  deaths            processes of the stack (or tools) dead at the end that the case did not kill
+                    on purpose; a tool killed by a signal or hung (an exit code is an answer);
+  non-finite        NaN/inf values received on the output topics (/pam/pressures, estimate,
+                    valve_command, controller_state, joint_measured, driver_node/applied_command,
+                    /diagnostics values that read as numbers);
+  lost unreported   messages sent minus messages answered minus the loss the node reports
+                    ('samples lost' or 'lost frames' on /diagnostics); '-' where a case has no
+                    numbered stream to count;
+  tracebacks        'Traceback' in any process's output during the case.
+Exit code 0 only if every case's observation matches its expectation and the totals are 0.
+
+    .venv/bin/python benchmarks/fault_campaign.py [--only PATTERN] [--list]
+
+(with AMENT_PREFIX_PATH=.venv and .venv/bin on PATH: `source scripts/env.sh`). --only runs the
+cases whose name or group matches the regular expression; a group's stack starts once for its
+cases (serial faults: one emulator per case). About 5-8 minutes in all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import rclpy
+from rclpy.context import Context
+
+from fault_inputs import (HUGE, INF, NAN, Feed, Parameters, command_message,
+                          copy_bag, estimate_message, flip_in_chunk, flip_unnoticed,
+                          lockstep_command, pressures_message, remove_metadata,
+                          remove_split_file, truncate, unanswered)
+from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, new_folder, number, run_tool,
+                         traceback_count)
+from pam_driver.sample_gaps import SampleGaps
+from pam_driver.testing import (MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env,
+                                malformed_params_file, stamp_ns, wait_until)
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT / 'bags'
+SETTLE = 0.3          # s after a case's inputs before the /diagnostics it is judged on
+SAFE_SLACK = 0.5      # s allowed on top of a watchdog's time on a loaded machine
+
+
+@dataclass
+class Verdict:
+    ok: bool
+    observed: str
+
+
+@dataclass
+class Case:
+    """One row of the table: the input given, the behaviour expected, how to do it
+    (act(ctx) -> facts) and how to judge it (check(ctx, facts) -> Verdict)."""
+
+    name: str
+    group: str
+    given: str
+    expected: str
+    act: Callable
+    check: Callable
+
+
+@dataclass
+class Row:
+    case: Case
+    verdict: Verdict
+    deaths: list
+    non_finite: list
+    lost: object          # int, 'n/a' (no loss report on /diagnostics) or '-' (not counted)
+    tracebacks: int
+
+
+# ============================================================================ case context
+class Ctx:
+    """What a case's act and check see: the group's stack and inputs, /diagnostics before and
+    after, the tools it ran."""
+
+    def __init__(self, run: 'GroupRun'):
+        self.run = run
+        self.stack: Stack | None = run.stack
+        self.io = run.io
+        self.folder = new_folder(run.folder, 'case')
+        self.env = child_env(run.domain)
+        self.domain = run.domain
+        self.t0 = time.monotonic()
+        self.t_acted = self.t0
+        self.tools: list[Tool] = []
+        self.procs: list[NodeProcess] = []       # processes a case starts on its own
+        self.before = {n: self.stack.values(n) for n in run.group.diag_nodes} if self.stack \
+            else {}
+        self._after: dict[str, dict] = {}
+
+    def after(self, node: str) -> dict:
+        """/diagnostics of `node` from the first status after the case's inputs settled."""
+        if node not in self._after:
+            self._after[node] = self.stack.fresh_values(node, self.t_acted + SETTLE)
+        return self._after[node]
+
+    def delta(self, node: str, key: str) -> float:
+        return number(self.after(node), key) - number(self.before.get(node, {}), key, 0.0)
+
+    def received(self, topic: str) -> list:
+        return self.stack.topics[topic].since(self.t0)
+
+    def tool(self, exe: str, package: str, *args) -> Tool:
+        result = run_tool(exe, package, args, self.env, self.folder)
+        self.tools.append(result)
+        return result
+
+
+# ============================================================================ checks
+def all_of(*checks):
+    def check(ctx, facts):
+        verdicts = [c(ctx, facts) for c in checks]
+        return Verdict(all(v.ok for v in verdicts), '; '.join(v.observed for v in verdicts))
+    return check
+
+
+def rises(node: str, key: str, at_least: float, at_most: float = math.inf):
+    """A /diagnostics counter of `node` went up by at_least .. at_most during the case."""
+    def check(ctx, facts):
+        d = ctx.delta(node, key)
+        return Verdict(at_least <= d <= at_most, f"'{key}' +{d:g}")
+    return check
+
+
+def diag_is(node: str, key: str, predicate, what: str):
+    def check(ctx, facts):
+        value = ctx.after(node).get(key, '(missing)')
+        return Verdict(bool(predicate(value)), f"'{key}' {value}")
+    return check
+
+
+def level_at_least(node: str, level: int):
+    def check(ctx, facts):
+        s = ctx.stack.status(node, ctx.t_acted + SETTLE)
+        got = s.level[0] if s else -1
+        names = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE', -1: 'none'}
+        return Verdict(got >= level, f'{node} {names[got]}: {s.message if s else ""}'[:140])
+    return check
+
+
+def estimates_of(ctx, sent) -> list:
+    """The pressure samples sent that have no estimate (matched by counter)."""
+    got = {m.sample for m in ctx.received('/pam/estimate')}
+    return [s for s, _ in sent if s not in got]
+
+
+def commands_of(ctx, sent) -> list:
+    """The estimates sent that have no valve command (matched by stamp)."""
+    return unanswered(sent, [stamp_ns(m.header.stamp)
+                             for m in ctx.received('/pam/valve_command')])
+
+
+def every_answer(node: str, missing_of, what: str):
+    """Every message sent was answered (missing_of(ctx, sent) empty, waiting up to 3 s for the
+    last), or `node` reported the missing ones lost ('samples lost' on /diagnostics)."""
+    def check(ctx, facts):
+        sent = facts['sent']
+        wait_until(lambda: not missing_of(ctx, sent), 3.0, 0.05)
+        missing = missing_of(ctx, sent)
+        text = f'{len(sent) - len(missing)}/{len(sent)} {what}'
+        if not missing:
+            return Verdict(True, text)
+        reported = ctx.delta(node, 'samples lost')
+        return Verdict(reported >= len(missing),
+                       f"{text} (counters {missing[0]}..{missing[-1]} missing), {reported:g} "
+                       f"reported as 'samples lost'")
+    return check
+
+
+def stepped(n: int):
+    """A lockstep sim_node stepped for n of the commands."""
+    def check(ctx, facts):
+        k = facts['stepped']
+        return Verdict(k == n, f'stepped {k}/{len(facts["results"])}')
+    return check
+
+
+def applied(u1: float, u2: float):
+    """driver_node's last ~/applied_command is (u1, u2)."""
+    def check(ctx, facts):
+        items = ctx.stack.topics['/pam/driver_node/applied_command'].messages()
+        last = (items[-1].u1, items[-1].u2) if items else None
+        return Verdict(last == (u1, u2), f'applied {last}')
+    return check
+
+
+def refused(ctx, facts):
+    """Every parameter change in facts['results'] was refused with a reason, and the value read
+    back afterwards is the one before."""
+    bad = [f'{n}={v!r}: {"accepted" if ok else "no reason"}'
+           for n, v, ok, reason, _, _ in facts['results'] if ok or not reason]
+    changed = [f'{n} {old!r} -> {new!r}' for n, _, _, _, old, new in facts['results']
+               if old != new and not (_is_nan(old) and _is_nan(new))]
+    total = len(facts['results'])
+    text = f'{total - len(bad)}/{total} refused with a reason, values unchanged'
+    if bad or changed:
+        text = f'{total - len(bad)}/{total} refused; ' + '; '.join(bad + changed)
+    return Verdict(not bad and not changed, text)
+
+
+def accepted(ctx, facts):
+    rows = [f'{n}={v!r} {"set" if ok and new == v else f"NOT set ({reason}) -> {new!r}"}'
+            for n, v, ok, reason, _, new in facts['results']]
+    return Verdict(all(ok and new == v for n, v, ok, _, _, new in facts['results']),
+                   ', '.join(rows))
+
+
+def _is_nan(value) -> bool:
+    return isinstance(value, float) and math.isnan(value)
+
+
+def safe_within(topic: str, safe: tuple, limit: float, what: str):
+    """After the kill, the first message on `topic` equal to `safe` arrives within `limit` s."""
+    def check(ctx, facts):
+        t_kill = facts['killed_at']
+        hits = [t for t, m in ctx.stack.topics[topic].items()
+                if t >= t_kill and (m.u1, m.u2) == safe]
+        if not hits:
+            return Verdict(False, f'{what}: no {safe} on {topic} after the kill')
+        dt = hits[0] - t_kill
+        return Verdict(dt <= limit, f'{what} {safe} {dt * 1e3:.0f} ms after the kill '
+                                    f'(limit {limit * 1e3:.0f} ms)')
+    return check
+
+
+def alive(*names):
+    def check(ctx, facts):
+        dead = [n for n in names if not ctx.stack.procs[n].alive()]
+        return Verdict(not dead, 'dead: ' + ', '.join(dead) if dead else
+                       ', '.join(names) + ' alive')
+    return check
+
+
+def tools_answer(expected: dict):
+    """Each tool run of the case exited with its expected code, naming the bag on stderr when
+    it failed; expected: label -> code."""
+    def check(ctx, facts):
+        parts, ok = [], True
+        for label, code in expected.items():
+            run = facts['runs'].get(label)
+            if run is None:
+                parts.append(f'{label} not run')
+                ok = False
+                continue
+            named = run.code == 0 or any(facts['bag_name'] in line for line in run.lines())
+            good = run.code == code and named
+            ok &= good
+            shown = 'hung' if run.code is None else run.code
+            parts.append(f'{label} {shown}' + ('' if named else ' (error does not name the bag)'))
+        return Verdict(ok, ', '.join(parts))
+    return check
+
+
+def params_file_refused(ctx, facts):
+    """Every executable exited with code 2 and one stderr line naming the file (and line)."""
+    path, line = facts['path'], facts['line']
+    bad = []
+    for exe, run in facts['runs'].items():
+        lines = run.lines()
+        one = (len(lines) == 1 and f'params file {path}: ' in lines[0]
+               and (line is None or lines[0].endswith(f'(line {line})')))
+        if run.code != 2 or not one:
+            bad.append(f'{exe}: exit {run.code}, {len(lines)} lines: '
+                       f'{(lines or [""])[0][:100]}')
+    n = len(facts['runs'])
+    return Verdict(not bad, f'{n - len(bad)}/{n} exit 2 with one line' +
+                   ('; ' + '; '.join(bad) if bad else ''))
+
+
+def unknown_name_warned(ctx, facts):
+    missing = [exe for exe, seen in facts['warned'].items() if not seen]
+    n = len(facts['warned'])
+    return Verdict(not missing, f'{n - len(missing)}/{n} warned' +
+                   (': missing ' + ', '.join(missing) if missing else ''))
+
+
+# ============================================================================ actions
+def feed_values(feed: str, values, stamps='forward', period=0.001, before=None):
+    """Publish `before(ctx)` first (if given), then one message of `feed` per value, then a
+    closing good one."""
+    def act(ctx):
+        if before is not None:
+            before(ctx)
+            time.sleep(0.05)
+        f: Feed = ctx.io[feed]
+        sent = f.send(values, stamps, period) + f.close()
+        return {'sent': sent}
+    return act
+
+
+def commands_to(topic_key: str, commands):
+    """Publish the valve commands (u1, u2) on the publisher io[topic_key]."""
+    def send(ctx):
+        for u1, u2 in commands:
+            ctx.io[topic_key].publish(command_message(u1, u2))
+            time.sleep(0.002)
+    return send
+
+
+def reference(mode: int, value: float):
+    def send(ctx):
+        from pam_interfaces.msg import Reference
+        ctx.io['reference'].publish(Reference(mode=mode, value=float(value)))
+    return send
+
+
+def lockstep(commands, stamps='current'):
+    """Commands to a lockstep sim_node, each waiting for the step it makes (or 0.2 s)."""
+    def act(ctx):
+        results = [lockstep_command(ctx.io['commands'], ctx.stack.topics['/pam/pressures'],
+                                    u1, u2, stamps, timeout=1.0 if stamps != 'past' else 0.2)
+                   for u1, u2 in commands]
+        lockstep_command(ctx.io['commands'], ctx.stack.topics['/pam/pressures'], 5.5, 5.5)
+        return {'results': results, 'stepped': sum(results)}
+    return act
+
+
+def lockstep_decreasing(n: int):
+    """A command for the current step, then n stamped 1 ms, 2 ms, ... before it."""
+    def act(ctx):
+        pressures = ctx.stack.topics['/pam/pressures']
+        t_k = stamp_ns(pressures.messages()[-1].header.stamp)
+        results = [lockstep_command(ctx.io['commands'], pressures, 5.5, 5.5)]
+        for i in range(1, n + 1):
+            ctx.io['commands'].publish(command_message(5.5, 5.5, t_k - i * 1_000_000))
+            time.sleep(0.01)
+            results.append(False)
+        lockstep_command(ctx.io['commands'], pressures, 5.5, 5.5)
+        return {'results': results, 'stepped': int(results[0])}
+    return act
+
+
+def driver_commands(commands, stamps='now'):
+    """Valve commands to driver_node, stamped now, 0 or 10 s back; then a good (5.5, 5.5)."""
+    def act(ctx):
+        for i, (u1, u2) in enumerate(commands):
+            ns = {'now': None, 'zero': 0, 'past': time.time_ns() - 10_000_000_000,
+                  'decreasing': time.time_ns() - (i + 1) * 1_000_000_000}[stamps]
+            ctx.io['commands'].publish(command_message(u1, u2, ns))
+            time.sleep(0.005)
+        time.sleep(0.2)
+        return {}
+    return act
+
+
+def in_turn(*acts):
+    def act(ctx):
+        facts = {}
+        for a in acts:
+            facts.update(a(ctx) or {})
+        return facts
+    return act
+
+
+def set_parameters(node: str, changes, then=None):
+    """Set each (name, value) alone through node's SetParameters service; record
+    (name, value, successful, reason, value before, value after)."""
+    def act(ctx):
+        client = Parameters(ctx.stack.probe, f'/pam/{node}')
+        results = []
+        for name, value in changes:
+            old = client.get(name)
+            ok, reason = client.set(name, value)
+            results.append((name, value, ok, reason, old, client.get(name)))
+        facts = {'results': results}
+        if then is not None:
+            facts.update(then(ctx))
+        return facts
+    return act
+
+
+def kill(name: str, then_wait: float = 1.5, before=None):
+    def act(ctx):
+        if before is not None:
+            before(ctx)
+        t = ctx.stack.kill(name)
+        time.sleep(then_wait)
+        return {'killed_at': t}
+    return act
+
+
+def arm_driver(ctx) -> None:
+    """Make sure driver_node applies the controller's commands (call ~/arm if it latched safe
+    during start-up) and they flow for 1 s."""
+    from std_srvs.srv import Trigger
+    applied = ctx.stack.topics['/pam/driver_node/applied_command']
+    if wait_until(lambda: applied.messages() and applied.messages()[-1].u1 != 0.0, 3.0):
+        time.sleep(1.0)
+        return
+    client = ctx.stack.probe.client(Trigger, '/pam/driver_node/arm')
+    client.wait_for_service(timeout_sec=5.0)
+    future = client.call_async(Trigger.Request())
+    wait_until(future.done, 5.0)
+    wait_until(lambda: applied.messages() and applied.messages()[-1].u1 != 0.0, 5.0)
+    time.sleep(1.0)
+
+
+def observe(seconds: float):
+    def act(ctx):
+        time.sleep(seconds)
+        return {}
+    return act
+
+
+def wait_diag(node: str, predicate, timeout: float):
+    """Wait (at most timeout s) for a /diagnostics status of node whose values satisfy
+    predicate; the case is then judged on the statuses after it."""
+    def act(ctx):
+        wait_until(lambda: predicate(ctx.stack.values(node, ctx.t0)), timeout, 0.1)
+        return {}
+    return act
+
+
+def kill_recorder(ctx):
+    """SIGKILL bag_record after 3 s of recording, then pam-bag-recover and pam-bag-info."""
+    time.sleep(3.0)
+    ctx.t_kill = ctx.stack.kill('bag_record')
+    bag = ctx.run.folder / 'recorded'
+    runs = {'recover': ctx.tool('pam-bag-recover', 'pam_driver', bag)}
+    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
+    return {'runs': runs, 'bag_name': 'recorded'}
+
+
+# --- bags
+READERS = ('info', 'play', 'evaluate', 'identify')
+
+
+def bag_tools(ctx, bag: Path) -> dict:
+    """Every bag tool on `bag`: pam-bag-info, bag_play, pam-evaluate, pam-identify; then
+    pam-bag-recover and pam-bag-info on what it rebuilt."""
+    runs = {'info': ctx.tool('pam-bag-info', 'pam_driver', bag),
+            'play': ctx.tool('bag_play', 'pam_driver', '--ros-args', '-p', f'bag:={bag}',
+                             '-p', 'rate:=50.0', '-p', 'delay:=0.0'),
+            'evaluate': ctx.tool('pam-evaluate', 'pam_estimator', bag),
+            'identify': ctx.tool('pam-identify', 'pam_estimator', bag, '-o',
+                                 ctx.folder / 'identified')}
+    runs['recover'] = ctx.tool('pam-bag-recover', 'pam_driver', bag)
+    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
+    return runs
+
+
+def damaged_bag(source: str, *damages):
+    """A copy of bags/<source> with each damage(bag) applied, through every bag tool."""
+    def act(ctx):
+        bag = copy_bag(BAGS / source, ctx.folder, 'damaged')
+        done = [damage(bag) for damage in damages]
+        return {'runs': bag_tools(ctx, bag), 'bag_name': 'damaged', 'done': done}
+    return act
+
+
+def recovered_then(damage):
+    """A copy of bags/closed_mild_angle with a chunk zstd sees as damaged, rebuilt by
+    pam-bag-recover (which writes CRCs), then `damage` applied to the rebuilt bag."""
+    def apply(bag: Path) -> str:
+        flip_in_chunk(bag)
+        run = run_tool('pam-bag-recover', 'pam_driver', [bag], dict(os.environ), bag.parent)
+        if run.code != 0:
+            raise RuntimeError(f'pam-bag-recover exit {run.code}: {run.stderr[-300:]}')
+        for old in bag.glob('*.damaged'):
+            old.unlink()
+        return damage(bag)
+    return apply
+
+
+# --- params files
+PARAMS_FILE_EXES = (('sim_node', 'pam_driver'), ('driver_node', 'pam_driver'),
+                    ('profile_player', 'pam_driver'), ('bag_record', 'pam_driver'),
+                    ('bag_play', 'pam_driver'), ('ukf_node', 'pam_estimator'),
+                    ('pi_node', 'pam_controller'), ('reference_node', 'pam_controller'),
+                    ('tracking_report', 'pam_controller'))
+
+
+def params_file_to_all(kind: str):
+    """The malformed params file of `kind` (pam_driver.testing.MALFORMED_PARAMS_FILES) to every
+    node and pam-bringup, three at a time."""
+    def act(ctx):
+        path, line = malformed_params_file(ctx.folder, kind)
+        jobs = {exe: (exe, package, '--ros-args', '--params-file', path)
+                for exe, package in PARAMS_FILE_EXES}
+        jobs['pam-bringup'] = ('pam-bringup', 'pam_controller', '--params-file', path,
+                               '--domain-id', ctx.domain, '--duration', 5)
+        with ThreadPoolExecutor(3) as pool:
+            futures = {exe: pool.submit(ctx.tool, *job) for exe, job in jobs.items()}
+            runs = {exe: f.result() for exe, f in futures.items()}
+        return {'runs': runs, 'path': path, 'line': line}
+    return act
+
+
+def unknown_name_in_every_node(ctx):
+    """Every node started with a params file setting an unknown name (and the bag it needs):
+    each must warn about it; stopped as soon as all did (or after 60 s)."""
+    path = ctx.folder / 'unknown.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    no_such_parameter: 1.0\n')
+    extra = {'bag_play': ['-p', f'bag:={BAGS / "closed_mild_angle"}'],
+             'profile_player': ['-p', 'startup_timeout:=300.0'],
+             'tracking_report': ['-p', 'startup_timeout:=300.0'],
+             'bag_record': ['-p', f'output:={ctx.folder / "rec"}'],
+             'driver_node': ['-p', f'port:={ctx.folder / "no_device"}']}
+    for exe, package in PARAMS_FILE_EXES:
+        ctx.procs.append(NodeProcess(exe, package, ['--ros-args', '--params-file', str(path),
+                                                    *extra.get(exe, [])], ctx.env,
+                                     cwd=ctx.folder))
+    text = "ignoring unknown parameter 'no_such_parameter'"
+    wait_until(lambda: all(text in p.stderr for p in ctx.procs), 60.0, 0.2)
+    return {'warned': {p.name: text in p.stderr for p in ctx.procs}}
+
+
+# ============================================================================ groups
+@dataclass
+class Group:
+    """A stack (nodes, the outputs it publishes, the inputs the probe feeds it) shared by its
+    cases; nodes None: command-line tools only."""
+
+    name: str
+    nodes: dict | None = None
+    outputs: list = field(default_factory=list)
+    inputs: Callable | None = None       # inputs(stack) -> io dict (publishers, feeds)
+    diag_nodes: tuple = ()
+    loss: Callable | None = None         # loss(ctx, facts) -> int | 'n/a' | '-'
+
+
+def _msgs():
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: F401
+    from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement,
+                                    Pressures, Reference, ValveCommand)
+    return dict(ControllerState=ControllerState, JointEstimate=JointEstimate,
+                JointMeasurement=JointMeasurement, Pressures=Pressures, Reference=Reference,
+                ValveCommand=ValveCommand)
+
+
+M = _msgs()
+
+
+def ros(*params) -> tuple:
+    """--ros-args -p NAME:=VALUE ... for each 'NAME:=VALUE'."""
+    args = ['--ros-args']
+    for p in params:
+        args += ['-p', p]
+    return tuple(args)
+
+
+def matched(*keys):
+    """Ready when the probe's publishers io[key] have a subscriber each."""
+    return lambda stack: all(stack.io[k].publisher.get_subscription_count() > 0
+                             if isinstance(stack.io[k], Feed)
+                             else stack.io[k].get_subscription_count() > 0 for k in keys)
+
+
+def feed_loss(node: str, unanswered_of):
+    """Messages of the case's feed not answered (unanswered_of(ctx, sent)), less the samples
+    `node` reports lost ('samples lost' on /diagnostics)."""
+    def loss(ctx, facts):
+        sent = facts.get('sent')
+        if not sent:
+            return '-'
+        reported = ctx.delta(node, 'samples lost')
+        if math.isnan(reported):
+            return 'n/a'
+        return max(len(unanswered_of(ctx, sent)) - int(reported), 0)
+    return loss
+
+
+def serial_loss(ctx, facts):
+    """Gaps in the sample counter of /pam/pressures the probe received, less the frames
+    driver_node reports lost."""
+    gaps = SampleGaps()
+    for m in ctx.received('/pam/pressures'):
+        gaps.update(m.sample)
+    reported = ctx.delta('driver_node', 'lost frames')
+    if gaps.received == 0:
+        return '-'
+    if math.isnan(reported):
+        return 'n/a'
+    return max(gaps.lost - int(reported), 0)
+
+
+def ukf_io(stack):
+    return {'pressures': Feed(stack.probe.publisher(M['Pressures'], '/pam/pressures'),
+                              pressures_message),
+            'commands': stack.probe.publisher(M['ValveCommand'], '/pam/valve_command')}
+
+
+def pi_io(stack):
+    return {'estimates': Feed(stack.probe.publisher(M['JointEstimate'], '/pam/estimate'),
+                              estimate_message),
+            'reference': stack.probe.publisher(M['Reference'], '/pam/reference')}
+
+
+def commands_io(stack):
+    return {'commands': stack.probe.publisher(M['ValveCommand'], '/pam/valve_command')}
+
+
+def emulator(*args) -> NodeSpec:
+    """pam-emulator on a pty linked at ./pam_daq (in the group's folder)."""
+    return NodeSpec('pam-emulator', 'pam_driver', ('--link', 'pam_daq', *args),
+                    ready=lambda stack: (stack.folder / 'pam_daq').is_symlink())
+
+
+def driver(*params, streams: bool = True) -> NodeSpec:
+    ready = (lambda stack: len(stack.topics['/pam/pressures']) > 0) if streams else None
+    return NodeSpec('driver_node', 'pam_driver', ros('port:=pam_daq', *params),
+                    diag_name='driver_node', ready=ready)
+
+
+RIG_OUT = [(M['Pressures'], '/pam/pressures'), (M['JointMeasurement'], '/pam/joint_measured')]
+DRIVER_OUT = RIG_OUT + [(M['ValveCommand'], '/pam/driver_node/applied_command')]
+LOOP_OUT = RIG_OUT + [(M['JointEstimate'], '/pam/estimate'),
+                      (M['ValveCommand'], '/pam/valve_command'),
+                      (M['ControllerState'], '/pam/controller_state')]
+
+
+def serial_group(name: str, emulator_args=(), driver_params=(), streams=True) -> Group:
+    """pam-emulator with a fault and driver_node (no command watchdog: nothing commands it)."""
+    return Group(name, {'pam-emulator': emulator(*emulator_args),
+                        'driver_node': driver('watchdog_timeout:=0.0', *driver_params,
+                                              streams=streams)},
+                 DRIVER_OUT, commands_io, ('driver_node',), serial_loss)
+
+
+GROUPS = {g.name: g for g in [
+    Group('ukf', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node',
+                                       matched('pressures', 'commands'))},
+          [(M['JointEstimate'], '/pam/estimate')], ukf_io, ('ukf_node',),
+          feed_loss('ukf_node', estimates_of)),
+    Group('pi', {'pi_node': NodeSpec('pi_node', 'pam_controller', (), 'pi_node',
+                                     matched('estimates', 'reference'))},
+          [(M['ValveCommand'], '/pam/valve_command'),
+           (M['ControllerState'], '/pam/controller_state')], pi_io, ('pi_node',),
+          feed_loss('pi_node', commands_of)),
+    Group('sim', {'sim_node': NodeSpec('sim_node', 'pam_driver', ros('timing:=lockstep'),
+                                       'sim_node', lambda s: matched('commands')(s) and
+                                       len(s.topics['/pam/pressures']) > 0)},
+          RIG_OUT, commands_io, ('sim_node',)),
+    Group('driver', {'pam-emulator': emulator('--initial-command', '5.5', '5.5'),
+                     'driver_node': driver('watchdog_timeout:=0.0')},
+          DRIVER_OUT, commands_io, ('driver_node',)),
+    serial_group('serial_garbage', ('--garbage-every', '0.02')),
+    serial_group('serial_corrupt', ('--corrupt-every', '0.02')),
+    serial_group('serial_drop', ('--drop-every', '0.02')),
+    serial_group('serial_replug', ('--disconnect-at', '4.0', '--disconnect-for', '1.0')),
+    serial_group('serial_board_watchdog', ('--device-watchdog', '0.02'),
+                 ('heartbeat_period:=0.2',)),
+    serial_group('serial_stuck', ('--stuck-sensor', 'p1', '--stuck-at', '0.5')),
+    serial_group('serial_version', ('--protocol-version', '2.0'), streams=False),
+    serial_group('serial_unplugged'),
+    Group('loop_sim', {'sim_node': NodeSpec('sim_node', 'pam_driver', (), 'sim_node'),
+                       'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node'),
+                       'pi_node': NodeSpec('pi_node', 'pam_controller', (), 'pi_node')},
+          LOOP_OUT, None, ('sim_node', 'ukf_node', 'pi_node')),
+    Group('loop_driver', {'pam-emulator': emulator('--initial-command', '5.5', '5.5'),
+                          'driver_node': driver('watchdog_timeout:=0.3'),
+                          'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node'),
+                          'pi_node': NodeSpec('pi_node', 'pam_controller', (), 'pi_node')},
+          [*LOOP_OUT, (M['ValveCommand'], '/pam/driver_node/applied_command')], None,
+          ('driver_node', 'ukf_node', 'pi_node')),
+    Group('record', {'sim_node': NodeSpec('sim_node', 'pam_driver', (), 'sim_node'),
+                     'bag_record': NodeSpec('bag_record', 'pam_driver',
+                                            ros('output:=recorded'))},
+          RIG_OUT, None, ('sim_node',)),
+    Group('bags'),
+    Group('params_files'),
+]}
+
+
+# ============================================================================ the table
+def pressures(value, n=20):
+    return [value] * n
+
+
+def bad_params(node: str, *changes):
+    return set_parameters(node, changes)
+
+
+UKF, PI, SIM, DRV = 'ukf_node', 'pi_node', 'sim_node', 'driver_node'
+ANGLE, TORQUE = 0, 1
+ANSWERED_UKF = every_answer(UKF, estimates_of, 'samples estimated')
+ANSWERED_PI = every_answer(PI, commands_of, 'estimates answered')
+PF = MALFORMED_PARAMS_FILES
+
+CASES = [
+    # --- ukf_node: the probe is the rig (numbered, stamped pressures) -------------------------
+    Case('ukf.good', 'ukf', '200 good samples at 1 kHz', 'an estimate per sample',
+         feed_values('pressures', pressures(None, 200)), ANSWERED_UKF),
+    Case('ukf.p1_nan', 'ukf', '20 samples p1 = NaN', 'estimated (update skipped), counted as '
+         'rejected', feed_values('pressures', pressures((NAN, 4.5e5))),
+         all_of(ANSWERED_UKF, rises(UKF, 'rejected samples (invalid)', 20))),
+    Case('ukf.p2_inf', 'ukf', '20 samples p2 = +inf, 20 p1 = -inf', 'estimated (update '
+         'skipped), counted', feed_values('pressures', pressures((4.5e5, INF)) +
+                                          pressures((-INF, 4.5e5))),
+         all_of(ANSWERED_UKF, rises(UKF, 'rejected samples (invalid)', 40))),
+    Case('ukf.huge', 'ukf', '20 samples p1 = p2 = 1e300 Pa', 'estimated (update skipped: above '
+         'pressure_max), counted', feed_values('pressures', pressures((HUGE, HUGE))),
+         all_of(ANSWERED_UKF, rises(UKF, 'rejected samples (invalid)', 20))),
+    Case('ukf.negative', 'ukf', '20 samples p1 = -1e5 Pa, 20 p2 = 0 Pa', 'estimated (update '
+         'skipped: below pressure_min), counted',
+         feed_values('pressures', pressures((-1e5, 4.5e5)) + pressures((4.5e5, 0.0))),
+         all_of(ANSWERED_UKF, rises(UKF, 'rejected samples (invalid)', 40))),
+    Case('ukf.stamps_past', 'ukf', '20 samples stamped 10 s in the past', 'filter reset (time '
+         'went backwards), counted; estimated', feed_values('pressures', pressures(None),
+                                                            'past'),
+         all_of(ANSWERED_UKF, rises(UKF, 'resets on time going backwards', 1))),
+    Case('ukf.stamps_decreasing', 'ukf', '20 samples, each stamped 1 ms before the previous',
+         'a reset per step back, counted; estimated',
+         feed_values('pressures', pressures(None), 'decreasing'),
+         all_of(ANSWERED_UKF, rises(UKF, 'resets on time going backwards', 20))),
+    Case('ukf.stamps_zero', 'ukf', '20 samples stamped 0', 'one reset, then duplicates (last '
+         'estimate repeated), counted', feed_values('pressures', pressures(None), 'zero'),
+         all_of(ANSWERED_UKF, rises(UKF, 'resets on time going backwards', 1),
+                rises(UKF, 'duplicate samples (estimate repeated)', 19))),
+    Case('ukf.command_nonfinite', 'ukf', 'valve_command NaN, +inf, -inf V, then 20 samples',
+         'commands sanitised (0 V), counted; estimates finite',
+         feed_values('pressures', pressures(None), before=commands_to(
+             'commands', [(NAN, 5.5), (5.5, INF), (-INF, -INF), (5.5, 5.5)])),
+         all_of(ANSWERED_UKF, rises(UKF, 'bad valve commands', 3, 3))),
+    Case('ukf.command_range', 'ukf', 'valve_command 1e300, -5, 11 V, then 20 samples',
+         'commands clipped to [0, 10] V, counted',
+         feed_values('pressures', pressures(None), before=commands_to(
+             'commands', [(HUGE, 5.5), (5.5, -5.0), (11.0, 5.5), (5.5, 5.5)])),
+         all_of(ANSWERED_UKF, rises(UKF, 'bad valve commands', 3, 3))),
+    Case('ukf.burst', 'ukf', '5000 samples back to back (no pause)', 'every sample estimated '
+         "or its loss on /diagnostics ('samples lost')",
+         feed_values('pressures', pressures(None, 5000), period=0.0),
+         ANSWERED_UKF),
+    Case('ukf.params', 'ukf', 'run-time set: pressure_min NaN, nis_gate -1, joint_mode '
+         "'bogus', tuning 5 (integer), no_such_name 1.0", 'each refused with a reason (read-only '
+         'or unknown), value unchanged',
+         bad_params(UKF, ('pressure_min', NAN), ('nis_gate', -1.0), ('joint_mode', 'bogus'),
+                    ('tuning', 5), ('no_such_name', 1.0)), refused),
+
+    # --- pi_node: the probe is the estimator and the reference -----------------------------
+    Case('pi.good', 'pi', '200 good estimates at 1 kHz', 'a command per estimate',
+         feed_values('estimates', [0.0] * 200), ANSWERED_PI),
+    Case('pi.estimate_nan', 'pi', '20 estimates angle = NaN', 'finite commands, counted as '
+         'non-finite feedback', feed_values('estimates', [NAN] * 20),
+         all_of(ANSWERED_PI, rises(PI, 'non-finite feedback', 20))),
+    Case('pi.estimate_inf', 'pi', '10 estimates angle = +inf, 10 = -inf', 'finite commands, '
+         'counted', feed_values('estimates', [INF] * 10 + [-INF] * 10),
+         all_of(ANSWERED_PI, rises(PI, 'non-finite feedback', 20))),
+    Case('pi.estimate_huge', 'pi', '20 estimates angle = 1e300 rad', 'finite commands '
+         '(saturated)', feed_values('estimates', [HUGE] * 20), ANSWERED_PI),
+    Case('pi.torque_nan', 'pi', 'reference TORQUE 1 N m, 20 estimates torque = NaN',
+         'finite commands, counted', feed_values('estimates', [NAN] * 20,
+                                                 before=reference(TORQUE, 1.0)),
+         all_of(ANSWERED_PI, rises(PI, 'non-finite feedback', 20))),
+    Case('pi.reference_nan', 'pi', 'reference ANGLE NaN, then 20 estimates', 'reference '
+         'refused; finite commands', feed_values('estimates', [0.0] * 20,
+                                                 before=reference(ANGLE, NAN)),
+         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: math.isfinite(float(v)),
+                                     'finite'))),
+    Case('pi.reference_inf', 'pi', 'reference ANGLE +inf, then -inf, then 20 estimates',
+         'reference refused or clamped to the envelope; finite commands',
+         feed_values('estimates', [0.0] * 20, before=lambda ctx: (
+             reference(ANGLE, INF)(ctx), reference(ANGLE, -INF)(ctx))),
+         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: math.isfinite(float(v)),
+                                     'finite'))),
+    Case('pi.reference_huge', 'pi', 'reference ANGLE 1e308 rad, then 20 estimates', 'reference '
+         'clamped to the envelope; finite commands',
+         feed_values('estimates', [0.0] * 20, before=reference(ANGLE, 1e308)),
+         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: abs(float(v)) <= 1.0,
+                                     'clamped'))),
+    Case('pi.reference_mode', 'pi', 'reference mode 7 (no such mode), then 20 estimates',
+         'reference refused; finite commands',
+         feed_values('estimates', [0.0] * 20, before=lambda ctx: (
+             reference(ANGLE, 0.0)(ctx), time.sleep(0.05), reference(7, 0.1)(ctx))),
+         all_of(ANSWERED_PI, diag_is(PI, 'mode', lambda v: v == 'angle', 'angle'))),
+    Case('pi.stamps_past', 'pi', '20 estimates stamped 10 s in the past', 'answered; the '
+         'step back does not update the integral (counted as implausible dt)',
+         feed_values('estimates', [0.0] * 20, 'past'),
+         all_of(ANSWERED_PI, rises(PI, 'implausible dt (skipped)', 1))),
+    Case('pi.stamps_decreasing', 'pi', '20 estimates, each stamped 1 ms before the previous',
+         'answered; no integral update on a step back, counted',
+         feed_values('estimates', [0.0] * 20, 'decreasing'),
+         all_of(ANSWERED_PI, rises(PI, 'implausible dt (skipped)', 19))),
+    Case('pi.stamps_zero', 'pi', '20 estimates stamped 0', 'answered; dt 0 does not update the '
+         'integral, counted', feed_values('estimates', [0.0] * 20, 'zero'),
+         all_of(ANSWERED_PI, rises(PI, 'implausible dt (skipped)', 19))),
+    Case('pi.burst', 'pi', '5000 estimates back to back (no pause)', 'a command per estimate '
+         "or the loss on /diagnostics ('samples lost')",
+         feed_values('estimates', [0.0] * 5000, period=0.0),
+         ANSWERED_PI),
+    Case('pi.params_nonfinite', 'pi', 'run-time set: kp_angle NaN, ki_angle +inf, beta NaN, '
+         'u_max -inf', 'each refused with a reason, value unchanged',
+         bad_params(PI, ('kp_angle', NAN), ('ki_angle', INF), ('beta', NAN), ('u_max', -INF)),
+         refused),
+    Case('pi.params_range', 'pi', 'run-time set: kp_angle -1, kp_angle 1e9, tracking_time 0, '
+         'beta 11', 'each refused with a reason, value unchanged',
+         bad_params(PI, ('kp_angle', -1.0), ('kp_angle', 1e9), ('tracking_time', 0.0),
+                    ('beta', 11.0)), refused),
+    Case('pi.params_type', 'pi', "run-time set: kp_angle 'abc', kp_angle 30 (integer), "
+         'anti_windup 5, ki_torque true', 'each refused with a reason, value unchanged',
+         bad_params(PI, ('kp_angle', 'abc'), ('kp_angle', 30), ('anti_windup', 5),
+                    ('ki_torque', True)), refused),
+    Case('pi.params_limits', 'pi', "run-time set: u_min 9 (beta 5.5 below it), u_max 2, "
+         "anti_windup 'bogus'", 'each refused with a reason, value unchanged',
+         bad_params(PI, ('u_min', 9.0), ('u_max', 2.0), ('anti_windup', 'bogus')), refused),
+    Case('pi.params_names', 'pi', 'run-time set: kp_anglee (unknown), mode, feedback, '
+         'dt_max (read-only)', 'each refused with a reason, value unchanged',
+         bad_params(PI, ('kp_anglee', 30.0), ('mode', 'torque'), ('feedback', 'measured'),
+                    ('dt_max', 1.0)), refused),
+    Case('pi.params_valid', 'pi', 'run-time set: kp_angle 30, then 40 again; 20 estimates',
+         'accepted, read back; finite commands',
+         set_parameters(PI, [('kp_angle', 30.0), ('kp_angle', 40.0)],
+                        then=feed_values('estimates', [0.0] * 20)),
+         all_of(accepted, ANSWERED_PI)),
+
+    # --- sim_node, lockstep: the probe is the controller -----------------------------------
+    Case('sim.good', 'sim', '50 commands (5.5, 5.5) V for the current step', 'a step each',
+         lockstep([(5.5, 5.5)] * 50), stepped(50)),
+    Case('sim.command_nan', 'sim', '10 commands u1 = NaN', 'a step each, u1 vented (0 V), '
+         'counted', lockstep([(NAN, 5.5)] * 10),
+         all_of(stepped(10), rises(SIM, 'non-finite commands', 10))),
+    Case('sim.command_inf', 'sim', '10 commands u2 = +inf, 10 u1 = -inf', 'a step each, vented, '
+         'counted', lockstep([(5.5, INF)] * 10 + [(-INF, 5.5)] * 10),
+         all_of(stepped(20), rises(SIM, 'non-finite commands', 20))),
+    Case('sim.command_range', 'sim', '10 commands 1e300 V, 10 at -5 V', 'a step each, clipped '
+         'to [0, 10] V, counted', lockstep([(HUGE, 5.5)] * 10 + [(5.5, -5.0)] * 10),
+         all_of(stepped(20), rises(SIM, 'out-of-range commands', 20))),
+    Case('sim.stamps_zero', 'sim', '10 commands stamped 0', 'a step each (0: for the current '
+         'step)', lockstep([(5.5, 5.5)] * 10, 'zero'), stepped(10)),
+    Case('sim.stamps_past', 'sim', '10 commands stamped 1 s before the current step', 'ignored '
+         '(no step), counted', lockstep([(5.5, 5.5)] * 10, 'past'),
+         all_of(stepped(0), rises(SIM, 'past commands ignored', 10))),
+    Case('sim.stamps_decreasing', 'sim', 'a command for the current step, then 10 stamped 1, 2, '
+         '... ms before it', 'one step; the 10 ignored, counted', lockstep_decreasing(10),
+         all_of(stepped(1), rises(SIM, 'past commands ignored', 10))),
+    Case('sim.params', 'sim', "run-time set: rate NaN, timing 'bogus', seed -1, "
+         'no_such_name 1.0', 'each refused with a reason (read-only or unknown)',
+         bad_params(SIM, ('rate', NAN), ('timing', 'bogus'), ('seed', -1), ('no_such_name', 1.0)),
+         refused),
+
+    # --- driver_node + pam-emulator: the probe is the controller ---------------------------
+    Case('driver.good', 'driver', '50 commands (4, 6) V', 'applied',
+         driver_commands([(4.0, 6.0)] * 50), all_of(applied(4.0, 6.0),
+                                                    rises(DRV, 'commands received', 50))),
+    Case('driver.command_nonfinite', 'driver', '10 commands u1 = NaN, 10 u2 = +inf, 10 -inf',
+         'ignored (the valves keep (4, 6) V), counted',
+         driver_commands([(NAN, 5.0)] * 10 + [(5.0, INF)] * 10 + [(-INF, -INF)] * 10),
+         all_of(applied(4.0, 6.0), rises(DRV, 'non-finite commands', 30))),
+    Case('driver.command_range', 'driver', '10 commands (1e300, -5) V', 'clipped to '
+         'valve_limits (10, 0) V, counted', driver_commands([(HUGE, -5.0)] * 10),
+         all_of(applied(10.0, 0.0), rises(DRV, 'commands clipped', 10))),
+    Case('driver.stamps', 'driver', '10 commands (4, 6) V stamped 0, 10 stamped 10 s back, 10 '
+         'decreasing', 'applied: driver_node does not use command stamps',
+         in_turn(*(driver_commands([(4.0, 6.0)] * 10, s) for s in ('zero', 'past',
+                                                                  'decreasing'))),
+         all_of(applied(4.0, 6.0), rises(DRV, 'commands received', 30))),
+    Case('driver.params', 'driver', 'run-time set: watchdog_timeout NaN, port 5, '
+         'safe_output [NaN, 0], no_such_name 1.0', 'each refused with a reason',
+         bad_params(DRV, ('watchdog_timeout', NAN), ('port', 5), ('safe_output', [NAN, 0.0]),
+                    ('no_such_name', 1.0)), refused),
+
+    # --- serial faults of pam-emulator against driver_node (one emulator per case) ---------
+    Case('serial.garbage', 'serial_garbage', 'garbage bytes between frames every 20 ms',
+         'counted (garbage bytes); samples stream on',
+         observe(3.0), all_of(rises(DRV, 'garbage bytes', 1), alive('driver_node'))),
+    Case('serial.corrupt', 'serial_corrupt', 'a byte of a sample frame flipped every 20 ms',
+         'CRC errors counted, the frames lost reported', observe(3.0),
+         all_of(rises(DRV, 'crc errors', 1), rises(DRV, 'lost frames', 1))),
+    Case('serial.drop', 'serial_drop', 'a sample frame left out every 20 ms', 'sequence gaps '
+         'counted as lost frames', observe(3.0), rises(DRV, 'lost frames', 1)),
+    Case('serial.replug', 'serial_replug', 'unplugged at 4 s, replugged 1 s later (a new pty)',
+         'disconnect and reconnect counted; samples again after',
+         wait_diag(DRV, lambda v: number(v, 'reconnects', 0) >= 1, 15.0),
+         all_of(rises(DRV, 'disconnects', 1), rises(DRV, 'reconnects', 1),
+                diag_is(DRV, 'connected', lambda v: v == 'true', 'connected'))),
+    Case('serial.board_watchdog', 'serial_board_watchdog', 'board watchdog 20 ms, host '
+         'heartbeats every 200 ms', "the board's vents reported on /diagnostics", observe(3.0),
+         all_of(rises(DRV, 'board vents', 1), level_at_least(DRV, 1))),
+    Case('serial.stuck_sensor', 'serial_stuck', 'p1 ADC frozen from 0.5 s', 'sensor fault: safe '
+         'output, reported', wait_diag(DRV, lambda v: v.get('sensor fault', 'none') != 'none',
+                                       10.0),
+         all_of(diag_is(DRV, 'sensor fault', lambda v: v not in ('none', '(missing)'),
+                        'a fault'), diag_is(DRV, 'armed', lambda v: v == 'false', 'safe'))),
+    Case('serial.version', 'serial_version', 'a board of protocol 2.0', 'refused at the '
+         'handshake, reported; the node runs on', observe(2.0),
+         all_of(diag_is(DRV, 'device refused', lambda v: 'version' in v, 'version'),
+                level_at_least(DRV, 2), alive('driver_node'))),
+    Case('serial.unplugged', 'serial_unplugged', 'the board process killed (unplugged, never '
+         'back)', 'device lost reported (ERROR), safe, retrying; the node runs on',
+         kill('pam-emulator', 2.5),
+         all_of(diag_is(DRV, 'connected', lambda v: v == 'false', 'disconnected'),
+                level_at_least(DRV, 2), alive('driver_node'))),
+
+    # --- processes killed mid-run ----------------------------------------------------------
+    Case('kill.ukf_node', 'loop_sim', 'SIGKILL of ukf_node in the closed loop on sim_node',
+         'pi_node sends safe_command (5.5, 5.5) V within feedback_timeout (0.1 s)',
+         kill('ukf_node'), all_of(safe_within('/pam/valve_command', (5.5, 5.5), 0.1 + SAFE_SLACK,
+                                              'pi_node safe_command'),
+                                  alive('sim_node', 'pi_node'))),
+    Case('kill.pi_node_sim', 'loop_sim', 'SIGKILL of pi_node in the closed loop on sim_node',
+         'sim_node holds the last command (it has no command watchdog) and runs on',
+         kill('pi_node'), all_of(alive('sim_node', 'ukf_node'),
+                                 rises(SIM, 'samples published', 500))),
+    Case('kill.sim_node', 'loop_sim', 'SIGKILL of sim_node in the closed loop',
+         'ukf_node reports its input stale; pi_node sends safe_command within 0.1 s',
+         kill('sim_node'), all_of(level_at_least(UKF, 1),
+                                  safe_within('/pam/valve_command', (5.5, 5.5),
+                                              0.1 + SAFE_SLACK, 'pi_node safe_command'),
+                                  alive('ukf_node', 'pi_node'))),
+    Case('kill.pi_node_driver', 'loop_driver', 'SIGKILL of pi_node in the closed loop on '
+         'driver_node (watchdog 0.3 s)', 'driver_node applies safe_output (0, 0) V within its '
+         'watchdog', kill('pi_node', before=arm_driver),
+         all_of(safe_within('/pam/driver_node/applied_command', (0.0, 0.0), 0.3 + SAFE_SLACK,
+                            'driver_node safe_output'),
+                diag_is(DRV, 'safe reason', lambda v: 'watchdog' in v, 'watchdog'),
+                alive('driver_node', 'ukf_node'))),
+    Case('kill.bag_record', 'record', 'SIGKILL of bag_record after 3 s of recording',
+         'pam-bag-recover rebuilds the bag (exit 0), pam-bag-info reads it',
+         kill_recorder, tools_answer({'recover': 0, 'info (recovered)': 0})),
+
+    # --- damaged copies of the reference bags through every bag tool -----------------------
+    Case('bag.chunk_flipped', 'bags', 'closed_mild_angle, 16 bytes flipped in a chunk '
+         '(zstd fails)', 'info, play, evaluate, identify: exit 2 naming the file; recover: '
+         'exit 0, then info reads it', damaged_bag('closed_mild_angle', flip_in_chunk),
+         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+    Case('bag.chunk_crc', 'bags', 'a bag with CRCs (closed_mild_angle rebuilt by '
+         'pam-bag-recover), 8 bytes flipped so that zstd still decompresses', 'the chunk CRC '
+         'tells: exit 2 naming the file; recover: exit 0',
+         damaged_bag('closed_mild_angle', recovered_then(flip_unnoticed)),
+         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+    Case('bag.truncated', 'bags', 'closed_mild_angle cut at 60 % (mid-chunk, no summary)',
+         'exit 2 naming the file; recover: exit 0, then info reads it',
+         damaged_bag('closed_mild_angle', truncate),
+         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+    Case('bag.split_file_missing', 'bags', 'validation_mild_locked without its 2nd file',
+         'exit 2 naming the missing file; recover: rebuilds the rest, exit 2 naming what is '
+         'lost; then info reads it', damaged_bag('validation_mild_locked', remove_split_file),
+         tools_answer({**{r: 2 for r in READERS}, 'recover': 2, 'info (recovered)': 0})),
+    Case('bag.no_metadata', 'bags', 'closed_mild_angle without metadata.yaml', 'exit 2 naming '
+         'the repair; recover: exit 0, then info reads it',
+         damaged_bag('closed_mild_angle', remove_metadata),
+         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+
+    # --- malformed params files to every node and pam-bringup ------------------------------
+    *[Case(f'params_file.{kind}', 'params_files', f'params file: {kind}',
+           'every node and pam-bringup: exit 2, one line naming the file' +
+           ('' if PF[kind][1] is None else ' and the line'),
+           params_file_to_all(kind), params_file_refused) for kind in PF],
+    Case('params_file.unknown_name', 'params_files', 'params file setting no_such_parameter',
+         'every node warns, naming it', unknown_name_in_every_node, unknown_name_warned),
+]
+
+
+# ============================================================================ running
+class GroupRun:
+    """A group's stack (started on the first case, restarted where a case killed a node)."""
+
+    def __init__(self, group: Group, context, domain: int, folder: Path):
+        self.group = group
+        self.domain = domain
+        self.folder = new_folder(folder, group.name)
+        self.stack = None
+        self.io = {}
+        if group.nodes:
+            probe = Probe(context, f'fault_probe_{group.name}')
+            self.stack = Stack(probe, domain, self.folder, group.nodes, group.outputs)
+            self.io = self.stack.io = group.inputs(self.stack) if group.inputs else {}
+
+    def close(self):
+        if self.stack is not None:
+            self.stack.close()
+            self.stack.probe.close()
+
+
+def run_case(run: GroupRun, case: Case) -> Row:
+    """One case: (re)start what is missing of the group's stack (a process that died since the
+    last case is this case's death; what comes out of a start-up is counted too), act, judge."""
+    window = time.monotonic()
+    tracebacks0 = run.stack.tracebacks() if run.stack else 0
+    deaths = run.stack.deaths() if run.stack else []
+    if run.stack is not None:
+        run.stack.ensure()
+        time.sleep(0.3)
+    ctx = Ctx(run)
+    try:
+        facts = case.act(ctx) or {}
+        ctx.t_acted = time.monotonic()
+        verdict = case.check(ctx, facts)
+        lost = run.group.loss(ctx, facts) if run.group.loss else '-'
+    except Exception as exc:  # noqa: BLE001 - a harness problem fails the case, not the run
+        verdict, lost = Verdict(False, f'harness error: {type(exc).__name__}: {exc}'[:300]), '-'
+    deaths += run.stack.deaths() if run.stack else []
+    deaths += [f'{t.argv[0]} ({"hung" if t.code is None else t.code})' for t in ctx.tools
+               if t.died]
+    deaths += [f'{p.name} (exit {p.proc.returncode})' for p in ctx.procs
+               if not p.alive() and p.proc.returncode not in (0, 2)]
+    tracebacks = (run.stack.tracebacks() - tracebacks0 if run.stack else 0) + \
+        sum(t.tracebacks for t in ctx.tools) + \
+        sum(traceback_count(p.stderr + p.stdout) for p in ctx.procs)
+    for p in ctx.procs:
+        p.close()
+    non_finite = run.stack.watch.between(window, time.monotonic()) if run.stack else []
+    return Row(case, verdict, deaths, non_finite, lost, tracebacks)
+
+
+def cell(text) -> str:
+    return str(text).replace('|', '\\|').replace('\n', ' ')
+
+
+def print_table(rows: list[Row]) -> bool:
+    print('| case | expected | observed | deaths | non-finite | lost unreported | tracebacks |')
+    print('| --- | --- | --- | ---: | ---: | ---: | ---: |')
+    for r in rows:
+        mark = 'ok' if r.verdict.ok else 'FAIL'
+        observed = f'{mark}: {r.verdict.observed}'
+        if r.deaths:
+            observed += '; died: ' + ', '.join(r.deaths)
+        if r.non_finite:
+            first = r.non_finite[0]
+            observed += f'; non-finite e.g. {first.topic} {first.field} = {first.value}'
+        print(f'| `{r.case.name}` {cell(r.case.given)} | {cell(r.case.expected)} | '
+              f'{cell(observed)} | {len(r.deaths)} | {len(r.non_finite)} | {r.lost} | '
+              f'{r.tracebacks} |')
+    totals = (sum(len(r.deaths) for r in rows), sum(len(r.non_finite) for r in rows),
+              sum(r.lost for r in rows if isinstance(r.lost, int)),
+              sum(r.tracebacks for r in rows))
+    failed = [r.case.name for r in rows if not r.verdict.ok]
+    print(f'| **total** ({len(rows)} cases, {len(rows) - len(failed)} as expected) | | | '
+          f'{totals[0]} | {totals[1]} | {totals[2]} | {totals[3]} |')
+    if failed:
+        print(f'\nnot as expected: {", ".join(failed)}')
+    return not failed and totals == (0, 0, 0, 0)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--only', metavar='PATTERN',
+                        help='run the cases whose name or group matches this regular expression')
+    parser.add_argument('--list', action='store_true', help='list the cases and exit')
+    args = parser.parse_args(argv)
+    cases = [c for c in CASES if not args.only or re.search(args.only, c.name)
+             or re.search(args.only, c.group)]
+    if args.list:
+        for c in cases:
+            print(f'{c.name:28s} [{c.group}] {c.given} -> {c.expected}')
+        return 0
+    if not cases:
+        parser.error(f'no case matches {args.only!r}')
+    domain = campaign_domain()
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    rows: list[Row] = []
+    start = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix='fault_campaign_') as tmp:
+        try:
+            for name in dict.fromkeys(c.group for c in cases):
+                group_start = time.monotonic()
+                run = None
+                try:
+                    run = GroupRun(GROUPS[name], context, domain, Path(tmp))
+                    for case in (c for c in cases if c.group == name):
+                        rows.append(run_case(run, case))
+                except Exception as exc:  # noqa: BLE001 - e.g. a stack that never came up
+                    done = {r.case.name for r in rows}
+                    for case in (c for c in cases if c.group == name and c.name not in done):
+                        rows.append(Row(case, Verdict(False, f'group {name} failed: {exc}'[:300]),
+                                        [], [], '-', 0))
+                finally:
+                    if run is not None:
+                        run.close()
+                print(f'[{name}: {time.monotonic() - group_start:.0f} s]', file=sys.stderr,
+                      flush=True)
+        finally:
+            context.try_shutdown()
+    print(f'Fault campaign: {len(rows)} cases in {time.monotonic() - start:.0f} s, '
+          f'ROS_DOMAIN_ID {domain}\n')
+    return 0 if print_table(rows) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
