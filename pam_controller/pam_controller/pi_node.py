@@ -37,7 +37,7 @@ from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_command,
                                     declare_parameters, merge_overrides, usage_text, wants_help)
 from pam_driver.sample_gaps import WARN_RATIO_PARAM, SampleGaps
-from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog
+from pam_driver.throttled_log import ThrottledLogs
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
 from .pi import ANTI_WINDUP, PiGains, validate_gains
@@ -123,7 +123,8 @@ class PiNode(Node):
                                                             declare_parameters(self, PARAMETERS)))
         self.loop = build_loop(self.values)
         self.gaps = SampleGaps()              # of the estimates' sample counter
-        self._log_reference = ThrottledLog(self.get_logger(), 1.0)
+        self.logs = ThrottledLogs(self.get_logger(), 1.0)
+        self._log_reference = self.logs.new()
         self.guard = FiniteGuard(self.get_logger())
         safe = dict(zip(('u1', 'u2'), self.loop.safe_command))
         self.command_pub = self.guard.wrap(
@@ -143,6 +144,9 @@ class PiNode(Node):
                                                 'pam-pi', self._report)
         self.diagnostics.add_check(self.guard.report)
         self.diagnostics.add_check(self._clamp_report)
+        self.diagnostics.add_check(
+            lambda: self.gaps.report(self.values['lost_samples_warn_ratio']))
+        self.diagnostics.add_check(self.logs.report)
         self.create_timer(0.05, self._watchdog)
         self._last_feedback = None            # monotonic time of the last feedback
         self._stale = False
@@ -254,17 +258,13 @@ class PiNode(Node):
                   'integral term (V)': self.loop.controller.i_term,
                   'time since feedback (s)': age, 'implausible dt (skipped)': self.loop.bad_dt,
                   'non-finite feedback': self.loop.bad_feedback,
-                  'feedback source': self.values['feedback'], **self.gaps.values(),
-                  SUPPRESSED_KEY: self._log_reference.suppressed}
-        lost = self.gaps.problem(self.values['lost_samples_warn_ratio'])
+                  'feedback source': self.values['feedback']}
         if not self.loop.enabled:
             return WARN, 'disabled: valves at safe_command', values
         if self._last_feedback is None:
             return WARN, 'waiting for feedback', values
         if self._stale:
             return WARN, f'no feedback for {age:.2f} s: valves at safe_command', values
-        if lost:
-            return WARN, f'feedback samples lost: {lost}', values
         return OK, 'controlling', values
 
 

@@ -34,6 +34,7 @@ DEVICE_HEARTBEAT = 0x83
 
 FLAG_ENCODER = 0x01
 FLAG_TORQUE = 0x02
+STATUS_VENTED = 0x01    # SAMPLE status and DEVICE_HEARTBEAT state: the device watchdog vented
 
 HELLO_PAYLOAD = struct.Struct('<BB')                 # major, minor
 # major, minor, rate Hz, adc bits, dac bits, flags
@@ -234,3 +235,61 @@ class SequenceTracker:
                 self.lost += missing
         self.last = seq
         return missing
+
+
+class TickCounter:
+    """The rig's sample counter (pam_interfaces/Pressures.sample) from the device's u32 tick:
+    1 for the first sample the host received, then +1 per device tick, so that samples the
+    device took but the host never got (frames lost or corrupted on the line, the stream down
+    while reconnecting) are gaps downstream. A tick behind the last one (the device restarted)
+    continues at +1 (counted in restarts): the counter never goes back."""
+
+    def __init__(self):
+        self.last_tick = None
+        self.value = 0
+        self.restarts = 0
+
+    def update(self, tick: int) -> int:
+        """The counter of the sample with this tick."""
+        if self.last_tick is None:
+            self.value = 1
+        else:
+            step = (tick - self.last_tick) & 0xFFFFFFFF
+            if step == 0 or step > 0x7FFFFFFF:   # the same tick again or behind: a restart
+                self.restarts += 1
+                step = 1
+            self.value += step
+        self.last_tick = tick
+        return self.value
+
+
+class BoardVents:
+    """The times the device's own watchdog vented the valves (no host frame for its watchdog
+    time), from what the device reports: the status bit of each SAMPLE (a rising edge is a
+    vent) and the trip counter of DEVICE_HEARTBEAT (which also covers a vent whose samples
+    were lost). count is the larger of the two, over this host's sessions."""
+
+    def __init__(self):
+        self.edges = 0                  # rising edges of SAMPLE status bit 0
+        self.trips = 0                  # increase of the heartbeat's counter since the first
+        self.vented = False             # status bit 0 of the last SAMPLE
+        self._last_heartbeat = None     # the heartbeat's counter last seen
+
+    @property
+    def count(self) -> int:
+        return max(self.edges, self.trips)
+
+    def on_sample(self, status: int) -> None:
+        vented = bool(status & STATUS_VENTED)
+        if vented and not self.vented:
+            self.edges += 1
+        self.vented = vented
+
+    def on_heartbeat(self, watchdog_trips: int) -> None:
+        if self._last_heartbeat is None:
+            self.trips = self.edges     # the vents seen before the first heartbeat
+        else:
+            step = (watchdog_trips - self._last_heartbeat) & 0xFFFFFFFF
+            if step <= 0x7FFFFFFF:      # else the device restarted: its counter begins again
+                self.trips += step
+        self._last_heartbeat = watchdog_trips

@@ -54,7 +54,7 @@ from pam_driver.node_params import cli_preamble
 from pam_driver.executors import run_node
 from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import declare_parameters
-from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog
+from pam_driver.throttled_log import ThrottledLogs
 from pam_driver.timing import RateStatistics
 
 NODE_NAME = 'driver_node'
@@ -124,7 +124,8 @@ class DriverNode(Node):
         self._device_heartbeat = None
         self._ticks = proto.TickCounter()    # the device's tick -> Pressures.sample
         self._vents = proto.BoardVents()
-        self._log_nonfinite = ThrottledLog(self.get_logger(), LOG_THROTTLE)
+        self._logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
+        self._log_nonfinite = self._logs.new()
         self._samples = 0
         self._protocol_errors = 0
         self._internal_errors = 0
@@ -150,6 +151,7 @@ class DriverNode(Node):
         self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: DAQ board',
                                                  HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
+        self._diagnostics.add_check(self._logs.report)
         self.get_logger().info(
             f"port {self.config['port']} at {self.config['baud']} baud, calibration "
             f'{self.cal.source}; watchdog {self.config["watchdog_timeout"] * 1e3:g} ms, safe '
@@ -567,7 +569,6 @@ class DriverNode(Node):
                 'board vented now': self._vents.vented,
                 'last sample counter': self._ticks.value,
                 'device restarts (tick went back)': self._ticks.restarts,
-                SUPPRESSED_KEY: self._log_nonfinite.suppressed,
             }
             if self._device_heartbeat is not None:
                 rx, crc, trips, _ = self._device_heartbeat

@@ -298,7 +298,7 @@ class Emulator:
                 adc2 = self.stuck_value
         encoder = cal.encoder_counts(float(s.x[0])) if not self.args.no_encoder else 0
         torque = cal.torque_counts(float(s.torque)) if not self.args.no_torque else 0
-        status = 1 if self.watchdog_tripped else 0
+        status = proto.STATUS_VENTED if self.watchdog_tripped else 0
         return proto.sample(self._next_seq(), proto.Sample(self.tick, adc1, adc2, encoder,
                                                            torque, status))
 
@@ -351,7 +351,7 @@ class Emulator:
         if self.tick % max(self.info.rate // 10, 1) == 0:
             frame += proto.device_heartbeat(self._next_seq(), self.rx_frames,
                                             self.decoder.crc_errors, self.watchdog_trips,
-                                            1 if self.watchdog_tripped else 0)
+                                            proto.STATUS_VENTED if self.watchdog_tripped else 0)
         self.port.write(frame)
         self.samples_sent += 1
 

@@ -15,8 +15,9 @@ publisher that does not set it). Each counter value received is one of:
   replayed again, a new simulator): counted, the count goes on from there;
 * 0: counted as *uncounted*, nothing checked.
 
-/diagnostics: values() (the keys below) and problem(warn_ratio), the loss in the last
-diagnostics period: lost > warn_ratio * (samples due in that period) -> a WARN message.
+/diagnostics: report(warn_ratio), a check for DiagnosticsPublisher.add_check: the values below
+and, when the loss in the last diagnostics period exceeds warn_ratio * (the samples due in that
+period), a WARN 'samples lost: ...'.
 """
 
 from __future__ import annotations
@@ -119,6 +120,10 @@ class SampleGaps:
         """'' or the WARN message about the last period's loss (ends the period)."""
         period = self.take_period()
         if period.lost and period.lost > warn_ratio * period.due:
-            return (f'{period.lost} of {period.due} samples lost in the last period '
+            return (f'samples lost: {period.lost} of {period.due} in the last period '
                     f'({self.lost} since start)')
         return ''
+
+    def report(self, warn_ratio: float) -> tuple:
+        """(level, problem, values) for DiagnosticsPublisher.add_check (ends the period)."""
+        return 'WARN', self.problem(warn_ratio), self.values()

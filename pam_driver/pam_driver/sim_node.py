@@ -86,7 +86,7 @@ from pam_driver.executors import run_node
 from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import cli_preamble, declare_parameters
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
-from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog, suppressed_total
+from pam_driver.throttled_log import ThrottledLogs
 from pam_driver.timing import DeadlineSchedule, RateStatistics
 
 NODE_NAME = 'sim_node'
@@ -133,10 +133,9 @@ class SimNode(Node):
         self._reported = {'bad': 0, 'past': 0}
         self._current = None        # lockstep: the messages of the current sample
         self._last_publish = 0.0    # monotonic time of the last (re)publication
-        logger = self.get_logger()
-        self._log_nonfinite = ThrottledLog(logger, LOG_THROTTLE, level='error')
-        self._log_past = ThrottledLog(logger, LOG_THROTTLE)
-        self._log_bad = ThrottledLog(logger, LOG_THROTTLE)
+        self._logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
+        self._log_nonfinite = self._logs.new('error')
+        self._log_past, self._log_bad = self._logs.new(), self._logs.new()
 
     # ------------------------------------------------------------------ set-up
     def configure(self) -> None:
@@ -170,6 +169,7 @@ class SimNode(Node):
         self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: simulated rig',
                                                  HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
+        self._diagnostics.add_check(self._logs.report)
         for line in self.config.summary:
             self.get_logger().info(line)
         self.get_logger().info(
@@ -351,8 +351,6 @@ class SimNode(Node):
                 'mismatch': self.config.values['mismatch'] or 'none',
                 'non-finite samples suppressed': self._nonfinite_samples,
                 'last sample counter': rig.k + 1,
-                SUPPRESSED_KEY: suppressed_total((self._log_nonfinite, self._log_past,
-                                                  self._log_bad)),
             }
             if self._lockstep:
                 values['republished samples'] = self._republished

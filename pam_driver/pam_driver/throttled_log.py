@@ -7,7 +7,8 @@
 The first occurrence is logged at once; later ones at most once per `period` seconds (monotonic
 clock), each logged line saying how many were left out since the previous one:
 '... (37 more like this in the last 1.0 s, not logged)'. `count` (all occurrences) and
-`suppressed` (those not logged) are for /diagnostics: suppressed_total() sums a node's logs.
+`suppressed` (those not logged) are for /diagnostics: a node makes its throttled logs from one
+ThrottledLogs, whose report() (a check for DiagnosticsPublisher.add_check) sums them.
 Thread-safe (a sampling thread and the executor may both log). No ROS in here: the logger is
 anything with info/warning/error methods (rclpy's RcutilsLogger, logging.Logger).
 """
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable, Iterable
+from typing import Callable
 
 #: The /diagnostics key of suppressed_total().
 SUPPRESSED_KEY = 'log lines suppressed (throttled)'
@@ -55,6 +56,23 @@ class ThrottledLog:
         return True
 
 
-def suppressed_total(logs: Iterable[ThrottledLog]) -> int:
-    """Lines not logged by these throttled logs, together."""
-    return sum(log.suppressed for log in logs)
+class ThrottledLogs:
+    """A node's throttled logs: new() makes one; report() gives the lines they left out."""
+
+    def __init__(self, logger, period: float = 1.0):
+        self._logger = logger
+        self.period = period
+        self.logs: list[ThrottledLog] = []
+
+    def new(self, level: str = 'warning') -> ThrottledLog:
+        log = ThrottledLog(self._logger, self.period, level)
+        self.logs.append(log)
+        return log
+
+    @property
+    def suppressed(self) -> int:
+        return sum(log.suppressed for log in self.logs)
+
+    def report(self) -> tuple:
+        """(level, problem, values) for DiagnosticsPublisher.add_check: never a problem."""
+        return 'OK', '', {SUPPRESSED_KEY: self.suppressed}

@@ -95,3 +95,39 @@ def test_sequence_wraps_and_bad_payload():
         proto.Frame(proto.SAMPLE, 0, b'\x00').fields()
     with pytest.raises(proto.ProtocolError):
         proto.Frame(0x42, 0, b'').fields()
+
+
+def test_tick_counter_counts_device_samples_and_never_goes_back():
+    ticks = proto.TickCounter()
+    assert [ticks.update(t) for t in (500, 501, 504, 505)] == [1, 2, 5, 6]   # 2 lost on the line
+    ticks = proto.TickCounter()
+    assert [ticks.update(t) for t in (0xFFFFFFFE, 0xFFFFFFFF, 0, 2)] == [1, 2, 3, 5]   # wraps
+    assert ticks.restarts == 0
+    assert ticks.update(1) == 6 and ticks.restarts == 1       # behind: the device restarted
+    assert ticks.update(1) == 7 and ticks.restarts == 2       # the same tick again: too
+    assert ticks.update(2) == 8
+
+
+def test_board_vents_from_the_sample_status_and_the_heartbeat():
+    vents = proto.BoardVents()
+    for status in (0, 1, 1, 0, 0, 1, 0):          # two vents seen in the samples
+        vents.on_sample(status)
+    assert (vents.count, vents.vented) == (2, False)
+    vents.on_heartbeat(40)                        # 38 before this host: not counted
+    assert vents.count == 2
+    vents.on_heartbeat(43)                        # 3 more, of which the samples showed none
+    assert vents.count == 5
+    vents.on_sample(proto.STATUS_VENTED)
+    assert vents.vented and vents.count == 5      # the heartbeat counted it already
+    vents.on_sample(0)
+    vents.on_sample(1)
+    assert vents.count == 5 and vents.edges == 4
+    vents.on_sample(0)
+    vents.on_sample(1)
+    assert vents.count == 5                       # edges 5, trips 5
+    vents.on_sample(0)
+    vents.on_sample(1)
+    assert vents.count == 6                       # edges 6
+    vents.on_heartbeat(2)                         # the device restarted: its counter begins again
+    vents.on_heartbeat(3)
+    assert vents.trips == 6 and vents.count == 6

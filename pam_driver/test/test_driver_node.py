@@ -227,6 +227,13 @@ def test_injected_faults_are_counted_and_survived(rig):
     values = r.values()
     lost, crc = int(values['lost frames']), int(values['crc errors'])
     assert lost >= crc  # a corrupted frame is a lost one too
+    # Pressures.sample counts the board's ticks: dropped and corrupted sample frames and the
+    # second the board was unplugged are gaps (samples nobody got), never a step back
+    counters = [m.sample for m in r.pressures.messages()]
+    steps = [b - a for a, b in zip(counters, counters[1:])]
+    assert counters[0] >= 1 and min(steps) >= 1, 'the counter never repeats nor goes back'
+    assert max(steps) > 900, 'the unplugged second is a gap'
+    assert sum(1 for d in steps if d > 1) >= 3, 'dropped frames are gaps'
     assert r.driver.alive() and r.emulator.alive()
     assert all(math.isfinite(m.p1) and math.isfinite(m.p2) for m in r.pressures.messages())
 
@@ -296,6 +303,32 @@ def test_board_without_encoder_and_torque_meter(rig):
     assert values['encoder fitted'] == 'false' and values['torque meter fitted'] == 'false'
     assert values['device refused'] == 'none' and values['connected'] == 'true', values
     assert len(r.joint) == 0, 'joint_measured without an encoder and a torque meter'
+
+
+def test_board_vents_reach_the_diagnostics(rig):
+    """The board's own watchdog at 1 ms: it vents both valves between two host frames, and each
+    COMMAND re-arms it. Every vent reaches /diagnostics: 'board vents' (the device's own count
+    in the end), 'board vented N times' and ERROR while the driver is armed."""
+    r = rig(emulator_args=('--device-watchdog', '0.001'),
+            driver_params=('watchdog_timeout:=0.0',))
+    since = time.monotonic()
+    r.send(8.0, 2.0, duration=1.5, period=0.02)
+    r.driver.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR and 'board vented' in s.message
+                                  for s in _driver_statuses(r, since)), 5.0,
+                      "an ERROR 'board vented' status")
+    values = r.values()
+    assert values['armed'] == 'true', 'the driver reports the vents; it does not go safe'
+    assert int(values['board vents']) >= 10, values
+    # no COMMAND any more: the board stays vented, its trip count settles; the driver's count
+    # (vented samples, then the heartbeat's trip counter) is the device's
+    r.driver.wait_for(lambda: r.values().get('board vents') == str(
+        r.device()['device_watchdog_trips']) and r.values().get('board vented now') == 'true',
+        5.0, "the driver's board vents equal to the device's trips")
+
+
+def _driver_statuses(r, after):
+    return [s for t, a in r.diagnostics.items() if t >= after for s in a.status
+            if s.name.startswith('driver_node')]
 
 
 def test_default_watchdog_trips_after_50_ms(rig):

@@ -69,11 +69,15 @@ def test_problem_is_about_the_last_period_only():
     for c in [1003] + list(range(1004, 2000)):     # 2 lost out of 999 due: 0.2 %
         gaps.update(c)
     message = gaps.problem(0.001)
-    assert message.startswith('2 of 999 samples lost in the last period')
+    assert message.startswith('samples lost: 2 of 999 in the last period')
     assert gaps.problem(0.001) == ''               # nothing new since
     gaps.update(2001)                              # 1 lost out of 2 due
     assert gaps.problem(0.6) == ''
     assert gaps.problem(0.0) == ''                 # period already taken
     gaps.update(2003)
-    assert gaps.problem(0.0).startswith('1 of 2 samples lost')
+    assert gaps.problem(0.0).startswith('samples lost: 1 of 2')
     assert gaps.values()['samples lost'] == 4
+    gaps.update(2010)
+    level, problem, values = gaps.report(0.5)
+    assert (level, values['samples lost'], values['sample gaps']) == ('WARN', 10, 4)
+    assert problem == 'samples lost: 6 of 7 in the last period (10 since start)'

@@ -28,6 +28,7 @@ def run_lockstep(sim_node, probe, helpers, seed: int, noise: float = 2000.0,
     command = probe.publisher(ValveCommand, f'/{namespace}/valve_command')
     samples: dict[int, tuple[float, float]] = {}
     duplicates_differ: list[int] = []
+    wrong_counter: list[tuple[int, int]] = []
     lock = threading.Lock()
 
     def on_sample(msg: Pressures):
@@ -35,6 +36,8 @@ def run_lockstep(sim_node, probe, helpers, seed: int, noise: float = 2000.0,
         k, rest = divmod(t, H_NS)
         assert rest == 0, f'lockstep stamp {t} ns is not a multiple of h'
         with lock:
+            if msg.sample != k + 1:          # Pressures.sample: 1, 2, ...; a re-publication too
+                wrong_counter.append((k, msg.sample))
             if k in samples:
                 if samples[k] != (msg.p1, msg.p2):
                     duplicates_differ.append(k)
@@ -51,6 +54,7 @@ def run_lockstep(sim_node, probe, helpers, seed: int, noise: float = 2000.0,
     sim.wait_for(lambda: len(samples) > steps, RUN_TIMEOUT, f'{steps} lockstep steps')
     with lock:
         assert not duplicates_differ, f're-published samples differ at steps {duplicates_differ}'
+        assert not wrong_counter, f'(step, sample counter) {wrong_counter[:5]}'
         assert sorted(samples) == list(range(len(samples))), 'a step was skipped'
         result = [samples[k] for k in range(steps + 1)]
     assert sim.stop() == 0, 'sim_node should exit cleanly on SIGINT'

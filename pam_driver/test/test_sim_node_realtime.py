@@ -46,6 +46,9 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
 
     assert len(stamps) > 100, f'only {len(stamps)} samples in {MEASURE} s'
     assert all(b > a for a, b in zip(stamps, stamps[1:])), 'stamps must strictly increase'
+    counters = [m.sample for m in window]
+    assert all(b > a for a, b in zip(counters, counters[1:])), 'so must Pressures.sample'
+    assert counters[-1] - counters[0] + 1 >= len(window) and counters[0] >= 1
     span = stamps[-1] - stamps[0]
     rate = (len(stamps) - 1) / span
     assert abs(rate - RATE) <= 0.05 * RATE, f'achieved {rate:.1f} Hz from the stamps'

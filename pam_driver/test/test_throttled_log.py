@@ -5,7 +5,7 @@ import logging
 
 import pytest
 
-from pam_driver.throttled_log import ThrottledLog, suppressed_total
+from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog, ThrottledLogs
 
 
 class Clock:
@@ -50,15 +50,14 @@ def test_a_flood_gives_one_line_per_period(lines):
     assert len(lines.lines) == 3
 
 
-def test_level_and_total(lines):
-    clock = Clock()
-    a = ThrottledLog(lines, period=1.0, level='error', clock=clock)
-    b = ThrottledLog(lines, period=1.0, clock=clock)
+def test_a_nodes_logs_and_their_report(lines):
+    logs = ThrottledLogs(lines, period=60.0)
+    a, b = logs.new('error'), logs.new()
     for _ in range(3):
         a('a')
         b('b')
     assert lines.lines == [('error', 'a'), ('warning', 'b')]
-    assert suppressed_total([a, b]) == 4
+    assert logs.report() == ('OK', '', {SUPPRESSED_KEY: 4})
 
 
 def test_works_with_a_standard_logger(caplog):

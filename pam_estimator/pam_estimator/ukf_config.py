@@ -8,6 +8,7 @@ from typing import Any, Mapping
 from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_array,
                                     check_command, check_state, fail, merge_overrides,
                                     usage_text as _usage_text)
+from pam_driver.sample_gaps import WARN_RATIO_PARAM
 
 FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
 FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')
@@ -54,6 +55,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('stale_timeout', 0.1, 'double', 's',
               'Diagnostics report the input stale (WARN) after this long without pressures.',
               range=(0.001, 3600.0)),
+    WARN_RATIO_PARAM,
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published estimates.'),
 )
 

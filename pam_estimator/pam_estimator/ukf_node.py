@@ -36,7 +36,7 @@ from pam_driver.executors import run_node
 from pam_driver.finite_guard import FiniteGuard
 from pam_driver.node_params import declare_parameters, wants_help
 from pam_driver.sample_gaps import SampleGaps
-from pam_driver.throttled_log import SUPPRESSED_KEY, ThrottledLog, suppressed_total
+from pam_driver.throttled_log import ThrottledLogs
 
 from .estimator_core import EstimatorCore
 from .ukf_config import PARAMETERS, build_config, usage_text
@@ -58,11 +58,11 @@ class UkfNode(Node):
         self.core = EstimatorCore(config.ukf, config.values['initial_command'])
         self.frame_id = config.values['frame_id']
         self.stale_timeout = config.values['stale_timeout']
-        self.lost_warn_ratio = config.values['lost_samples_warn_ratio']
+        lost_warn_ratio = config.values['lost_samples_warn_ratio']
         self.gaps = SampleGaps()
-        logger = self.get_logger()
-        self._log_command, self._log_reset, self._log_rejected = (
-            ThrottledLog(logger, LOG_THROTTLE) for _ in range(3))
+        self.logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
+        self._log_command, self._log_reset, self._log_rejected = (self.logs.new() for _ in
+                                                                  range(3))
         for line in config.summary:
             self.get_logger().info(line)
         self._warm_up()
@@ -75,6 +75,8 @@ class UkfNode(Node):
         self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: UKF estimator',
                                                 'pam-ukf', self._report)
         self.diagnostics.add_check(self.guard.report)
+        self.diagnostics.add_check(lambda: self.gaps.report(lost_warn_ratio))
+        self.diagnostics.add_check(self.logs.report)
         self.get_logger().info(
             f"estimating: {self.resolve_topic_name('pressures')} + "
             f"{self.resolve_topic_name('valve_command')} -> "
@@ -150,19 +152,13 @@ class UkfNode(Node):
             'step time median (us)': median * 1e6,
             'step time max (us)': worst * 1e6,
             'joint mode': 'locked' if ukf.model.locked else 'free',
-            **self.gaps.values(),
-            SUPPRESSED_KEY: suppressed_total((self._log_command, self._log_reset,
-                                              self._log_rejected)),
         }
-        lost = self.gaps.problem(self.lost_warn_ratio)
         if core.samples == 0:
             return WARN, 'waiting for pressures', values
         if not math.isfinite(trace):
             return ERROR, 'covariance not finite', values
         if age > self.stale_timeout:
             return WARN, f'input stale: no pressures for {age:.2f} s', values
-        if lost:
-            return WARN, f'input samples lost: {lost}', values
         return OK, 'estimating', values
 
 

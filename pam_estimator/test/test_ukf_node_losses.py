@@ -1,0 +1,82 @@
+"""ukf_node as a real process fed by the test's probe: samples lost on the way are counted from
+Pressures.sample and reported on /diagnostics; a flood of warnings is throttled and counted."""
+
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+from pam_driver.diagnostics import status_values
+from pam_driver.testing import diagnostic_statuses, wait_until
+from pam_interfaces.msg import JointEstimate, Pressures
+
+BURST = 20000
+
+
+def pressures(sample: int, stamp_s: float) -> Pressures:
+    msg = Pressures(p1=4.5e5, p2=4.5e5, sample=sample)
+    msg.header.stamp.sec = int(stamp_s)
+    msg.header.stamp.nanosec = int(round((stamp_s % 1.0) * 1e9))
+    return msg
+
+
+def start(node_process, probe):
+    ukf = node_process('ukf_node', 'pam_estimator')
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
+    estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=1000)
+    pub = probe.publisher(Pressures, '/pam/pressures')
+    ukf.wait_for(lambda: pub.get_subscription_count() > 0 and len(diagnostics) > 0, 60.0,
+                 'ukf_node matched and reporting')
+    return ukf, diagnostics, estimates, pub
+
+
+def ukf_values(diagnostics) -> dict:
+    statuses = diagnostic_statuses(diagnostics, 'ukf_node')
+    return status_values(statuses[-1]) if statuses else {}
+
+
+def test_a_burst_lost_in_the_queue_is_reported(node_process, probe):
+    """20000 samples as fast as the probe can publish them: ukf_node's keep-last 100 queue
+    overflows. What reached the filter plus what /diagnostics reports lost is the whole burst,
+    and the status goes WARN."""
+    ukf, diagnostics, estimates, pub = start(node_process, probe)
+    pub.publish(pressures(1, 100.0))        # sample 1 surely in: the count starts there
+    ukf.wait_for(lambda: len(estimates) >= 1, 30.0, 'the estimate of sample 1')
+    since = time.monotonic()
+    for k in range(2, BURST + 1):
+        pub.publish(pressures(k, 100.0 + (k - 1) * 1e-3))
+
+    def settled():
+        values = ukf_values(diagnostics)
+        return values and int(values['samples estimated']) + int(values['samples lost']) == BURST
+
+    ukf.wait_for(settled, 60.0, 'samples estimated + samples lost == the burst; last: '
+                 f'{ukf_values(diagnostics)}')
+    values = ukf_values(diagnostics)
+    lost = int(values['samples lost'])
+    assert lost > 0, 'the burst was meant to overflow the queue'
+    assert int(values['sample gaps']) > 0 and values['repeated samples'] == '0', values
+    warned = [s for s in diagnostic_statuses(diagnostics, 'ukf_node')
+              if s.level == DiagnosticStatus.WARN and 'samples lost:' in s.message]
+    assert warned, 'a WARN about the loss'
+    got = [m.sample for m in estimates.since(since)]
+    assert got and got == sorted(got) and got[-1] == BURST, 'estimates carry the sample on'
+    assert ukf.alive()
+
+
+def test_time_going_backwards_100_times_logs_a_few_lines(node_process, probe):
+    """100 samples with decreasing stamps within a few ms: each one resets the filter (counted on
+    /diagnostics), but the log gets one line, not 100; the lines left out are counted."""
+    ukf, diagnostics, estimates, pub = start(node_process, probe)
+    for k in range(100):
+        pub.publish(pressures(0, 200.0 - k * 1e-3))
+
+    def counted():
+        values = ukf_values(diagnostics)
+        return values and values['resets on time going backwards'] == '99'
+
+    ukf.wait_for(counted, 30.0, f'99 resets on /diagnostics; last: {ukf_values(diagnostics)}')
+    assert wait_until(lambda: int(ukf_values(diagnostics)['log lines suppressed (throttled)'])
+                      >= 98, 5.0), ukf_values(diagnostics)
+    log = ukf.stderr + ukf.stdout
+    assert 1 <= log.count('time went backwards') <= 3, log
+    assert ukf_values(diagnostics)['samples without counter'] == '100'
