@@ -3,8 +3,10 @@
 Run after `source scripts/env.sh`:  .venv/bin/python benchmarks/bag_throughput.py [--seconds 20]
 [--play BAG]
 A publisher thread in this process sends Pressures, ValveCommand, JointMeasurement and
-JointEstimate at 1 kHz each (absolute deadlines) while bag_record runs as a separate process on
-an isolated ROS_DOMAIN_ID; then bag_play replays the bag twice and prints its send lateness:
+JointEstimate at 1 kHz each (absolute deadlines; Pressures and JointEstimate numbered by their
+sample counter) while bag_record runs as a separate process on an isolated ROS_DOMAIN_ID, and
+the gaps in the recorded counters are printed; then bag_play replays the bag twice and prints its
+send lateness:
 with the default read-ahead queue (reading while playing) and with the whole bag read ahead,
 and its peak memory. `--play BAG` replays another bag (e.g. a 130 s reference bag).
 """
@@ -26,7 +28,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from pam_interfaces.msg import (JointEstimate, JointMeasurement, Pressures,  # noqa: E402
                                 ValveCommand)
 
-from pam_driver.bags import bag_info  # noqa: E402
+from pam_driver.bags import bag_info, load_bag, make_typestore  # noqa: E402
+from pam_driver.sample_gaps import SampleGaps, loss_summary  # noqa: E402
 
 
 def main() -> int:
@@ -57,6 +60,8 @@ def main() -> int:
             time.sleep(delay)
         for pub, msg in zip(pubs, msgs):
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * 1_000_000, 10**9)
+            if hasattr(msg, 'sample'):
+                msg.sample = k
             pub.publish(msg)
             published += 1
     time.sleep(1.0)
@@ -67,6 +72,8 @@ def main() -> int:
     print(f'published {published} messages on 4 topics in {args.seconds:g} s; recorded '
           f'{recorded} (lost {published - recorded}); bag {info["size"] / 2**20:.1f} MiB '
           f'({info["compression"]})')
+    for topic, line in recorded_gaps(out).items():
+        print(f'  recorded {topic}: {line}')
     node.destroy_node()
     rclpy.shutdown()
     # the default read-ahead (reading while playing) vs one that holds the whole bag (read in
@@ -81,6 +88,18 @@ def main() -> int:
         last = stdout.strip().splitlines()[-1] if stdout.strip() else stderr
         print(f'{label}: {last}; peak RSS {peak / 1024:.0f} MiB')
     return 0
+
+
+def recorded_gaps(bag) -> dict:
+    """topic -> the loss its sample counter shows, for the recorded topics that have one."""
+    contents, store = load_bag(bag), make_typestore()
+    gaps = {name: SampleGaps() for name in contents.topic_names
+            if contents.topics[name].endswith(('/Pressures', '/JointEstimate'))}
+    for i, data in zip(contents.topic_index, contents.data):
+        name = contents.topic_names[i]
+        if name in gaps:
+            gaps[name].update(store.deserialize_cdr(data, contents.topics[name]).sample)
+    return {name: loss_summary(g.values()) for name, g in sorted(gaps.items())}
 
 
 def peak_rss_kib(proc) -> int:

@@ -14,19 +14,23 @@ import threading
 
 import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 
-from pam_driver.testing import NodeProcess, Probe, child_env, stamp_ns
+from pam_driver.diagnostics import status_values
+from pam_driver.testing import NodeProcess, Probe, child_env, diagnostic_statuses, stamp_ns
 from pam_interfaces.msg import JointMeasurement, Reference
 
 from .step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
 
 
 def run_lockstep_steps(mode: str, levels, hold: float, domain_id: int, seed: int = 0,
-                       mismatch: str = 'mild', timeout: float = 600.0) -> tuple:
+                       mismatch: str = 'mild', timeout: float = 600.0,
+                       diagnostics: dict | None = None) -> tuple:
     """Track `levels` (rad or N m), each held `hold` s of simulated time.
 
-    Returns (StepReport of the true angle or torque, t (s), reference, truth).
+    Returns (StepReport of the true angle or torque, t (s), reference, truth). A `diagnostics`
+    dict gets the last /diagnostics values of each node, by node name ('ukf_node', ...).
     """
     torque = mode == 'torque'
     os.environ.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
@@ -65,6 +69,7 @@ def run_lockstep_steps(mode: str, levels, hold: float, domain_id: int, seed: int
             done.set()
 
     probe.subscribe(JointMeasurement, '/pam/joint_measured', on_truth)
+    statuses = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
     try:
         if not done.wait(timeout):
             alive = {p.name: p.alive() for p in processes}
@@ -75,6 +80,10 @@ def run_lockstep_steps(mode: str, levels, hold: float, domain_id: int, seed: int
         dead = [p.name for p in processes if not p.alive()]
         if dead:
             raise RuntimeError(f'processes died: {dead}')
+        if diagnostics is not None:
+            for p in processes:
+                last = diagnostic_statuses(statuses, p.name)
+                diagnostics[p.name] = status_values(last[-1]) if last else {}
     finally:
         probe.close()
         context.try_shutdown()

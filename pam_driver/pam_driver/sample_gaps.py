@@ -127,3 +127,13 @@ class SampleGaps:
     def report(self, warn_ratio: float) -> tuple:
         """(level, problem, values) for DiagnosticsPublisher.add_check (ends the period)."""
         return 'WARN', self.problem(warn_ratio), self.values()
+
+
+def loss_summary(values) -> str:
+    """One line from the values of report() (or of a node's /diagnostics status, as strings):
+    for the benchmarks."""
+    if 'samples lost' not in values:
+        return 'no sample counter reported'
+    return (f"samples lost {values['samples lost']} in {values['sample gaps']} gaps, repeated "
+            f"{values['repeated samples']}, late {values['late samples (reordered)']}, without "
+            f"counter {values['samples without counter']}")

@@ -3,7 +3,7 @@ the WARN of the last diagnostics period."""
 
 import pytest
 
-from pam_driver.sample_gaps import RESTART_DISTANCE, SampleGaps
+from pam_driver.sample_gaps import RESTART_DISTANCE, SampleGaps, loss_summary
 
 
 def fed(counters):
@@ -81,3 +81,13 @@ def test_problem_is_about_the_last_period_only():
     level, problem, values = gaps.report(0.5)
     assert (level, values['samples lost'], values['sample gaps']) == ('WARN', 10, 4)
     assert problem == 'samples lost: 6 of 7 in the last period (10 since start)'
+
+
+def test_loss_summary_for_the_benchmarks():
+    gaps = fed([1, 2, 5, 5, 0])
+    assert loss_summary(gaps.values()) == ('samples lost 2 in 1 gaps, repeated 1, late 0, '
+                                           'without counter 1')
+    assert loss_summary({'samples lost': '3', 'sample gaps': '1', 'repeated samples': '0',
+                         'late samples (reordered)': '0', 'samples without counter': '0'}
+                        ).startswith('samples lost 3 in 1 gaps')
+    assert loss_summary({}) == 'no sample counter reported'

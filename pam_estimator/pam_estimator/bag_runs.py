@@ -152,7 +152,8 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
                   start_ns: int = SIMULATED_START_NS, namespace: str = '/pam') -> Path:
     """Write a simulated run as the bag the live stack records (the inverse of load_bag_run).
 
-    Per sample k, stamped start_ns + t[k]: /pam/pressures (the sensor readings p_measured),
+    Per sample k, stamped start_ns + t[k]: /pam/pressures (the sensor readings p_measured,
+    sample counter k + 1 as sim_node sets it),
     /pam/joint_measured (the true angle, velocity and torque) and /pam/valve_command (u[k]),
     which is what sim_node, profile_player and bag_record write for the same profile. The output
     directory must not exist.
@@ -177,7 +178,7 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
                             frame_id=frame_id)
             rows = {
                 'pressures': classes['pressures'](header=header, p1=float(run.p_measured[k, 0]),
-                                                  p2=float(run.p_measured[k, 1])),
+                                                  p2=float(run.p_measured[k, 1]), sample=k + 1),
                 'measured': classes['measured'](header=header, angle=float(run.x[k, 0]),
                                                 angular_velocity=float(run.x[k, 1]),
                                                 torque=float(run.torque[k])),

@@ -30,7 +30,7 @@ def _write(path, samples, commands, measured, store):
     w.add_topic('/pam/joint_measured', 'pam_interfaces/msg/JointMeasurement', [bags.make_qos()])
     events = []
     for i, (s, a, b) in enumerate(samples):
-        events.append((s, 0, i, '/pam/pressures', P(header=header(s), p1=a, p2=b)))
+        events.append((s, 0, i, '/pam/pressures', P(header=header(s), p1=a, p2=b, sample=i + 1)))
     for i, (s, a, b) in enumerate(commands):
         events.append((s, 1, i, '/pam/valve_command', V(header=header(s), u1=a, u2=b)))
     for i, (s, a, o, t) in enumerate(measured):
