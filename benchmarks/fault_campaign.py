@@ -27,7 +27,7 @@ Exit code 0 only if every case's observation matches its expectation and the tot
 
 (with AMENT_PREFIX_PATH=.venv and .venv/bin on PATH: `source scripts/env.sh`). --only runs the
 cases whose name or group matches the regular expression; a group's stack starts once for its
-cases (serial faults: one emulator per case). About 5-8 minutes in all.
+cases (serial faults: a pam-emulator per case). About 5-8 minutes in all.
 """
 
 from __future__ import annotations
@@ -108,9 +108,17 @@ class Ctx:
         self.t_acted = self.t0
         self.tools: list[Tool] = []
         self.procs: list[NodeProcess] = []       # processes a case starts on its own
+        self.killed: set[int] = set()            # ids of those it killed on purpose
         self.before = {n: self.stack.values(n) for n in run.group.diag_nodes} if self.stack \
             else {}
         self._after: dict[str, dict] = {}
+
+    def rebase(self) -> None:
+        """Judge the case from now on: /diagnostics before = the first status from now, the
+        messages received from now."""
+        now = time.monotonic()
+        self.before = {n: self.stack.fresh_values(n, now) for n in self.run.group.diag_nodes}
+        self.t0 = now
 
     def after(self, node: str) -> dict:
         """/diagnostics of `node` from the first status after the case's inputs settled."""
@@ -155,6 +163,7 @@ def diag_is(node: str, key: str, predicate, what: str):
 
 def level_at_least(node: str, level: int):
     def check(ctx, facts):
+        ctx.after(node)
         s = ctx.stack.status(node, ctx.t_acted + SETTLE)
         got = s.level[0] if s else -1
         names = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE', -1: 'none'}
@@ -188,6 +197,14 @@ def every_answer(node: str, missing_of, what: str):
         return Verdict(reported >= len(missing),
                        f"{text} (counters {missing[0]}..{missing[-1]} missing), {reported:g} "
                        f"reported as 'samples lost'")
+    return check
+
+
+def streams_on(at_least: int):
+    """At least `at_least` pressure samples reached the probe during the case."""
+    def check(ctx, facts):
+        n = len(ctx.received('/pam/pressures'))
+        return Verdict(n >= at_least, f'{n} samples received')
     return check
 
 
@@ -244,6 +261,17 @@ def safe_within(topic: str, safe: tuple, limit: float, what: str):
         dt = hits[0] - t_kill
         return Verdict(dt <= limit, f'{what} {safe} {dt * 1e3:.0f} ms after the kill '
                                     f'(limit {limit * 1e3:.0f} ms)')
+    return check
+
+
+def status_seen(node: str, level: int, text: str):
+    """A status of `node` at `level` or worse whose message holds `text` came during the case."""
+    def check(ctx, facts):
+        seen = [s for t, a in ctx.stack.topics['/diagnostics'].items() if t >= ctx.t0
+                for s in a.status if s.name.startswith(node) and s.level[0] >= level
+                and text in s.message]
+        return Verdict(bool(seen), f"{len(seen)} statuses with '{text}'" if seen else
+                       f"no status with '{text}'")
     return check
 
 
@@ -403,20 +431,80 @@ def kill(name: str, then_wait: float = 1.5, before=None):
     return act
 
 
+def trigger(ctx, service: str):
+    """Call a std_srvs/Trigger service; its response (None if no answer within 5 s)."""
+    from std_srvs.srv import Trigger
+    client = ctx.stack.probe.client(Trigger, service)
+    if not client.wait_for_service(timeout_sec=5.0):
+        return None
+    future = client.call_async(Trigger.Request())
+    return future.result() if wait_until(future.done, 5.0) else None
+
+
 def arm_driver(ctx) -> None:
     """Make sure driver_node applies the controller's commands (call ~/arm if it latched safe
     during start-up) and they flow for 1 s."""
-    from std_srvs.srv import Trigger
     applied = ctx.stack.topics['/pam/driver_node/applied_command']
-    if wait_until(lambda: applied.messages() and applied.messages()[-1].u1 != 0.0, 3.0):
-        time.sleep(1.0)
-        return
-    client = ctx.stack.probe.client(Trigger, '/pam/driver_node/arm')
-    client.wait_for_service(timeout_sec=5.0)
-    future = client.call_async(Trigger.Request())
-    wait_until(future.done, 5.0)
-    wait_until(lambda: applied.messages() and applied.messages()[-1].u1 != 0.0, 5.0)
+
+    def applying():
+        return applied.messages() and applied.messages()[-1].u1 != 0.0
+    if not wait_until(applying, 3.0):
+        trigger(ctx, '/pam/driver_node/arm')
+        wait_until(applying, 5.0)
     time.sleep(1.0)
+
+
+def board(args, then, ready=None):
+    """A pam-emulator with `args` on the group's link (driver_node's port) for this case. The
+    case is judged from before it starts (the new stream's gaps all fall in the case); when
+    `ready(ctx)` (default: samples flow), driver_node is armed (it latched safe when the last
+    board went), then `then`; the board is stopped at the end, unless the case killed it, and
+    the stream's end given time to reach ukf_node."""
+    def act(ctx):
+        ctx.rebase()
+        link = ctx.run.folder / 'pam_daq'
+        emulator = NodeProcess('pam-emulator', 'pam_driver', ['--link', str(link), *args],
+                               ctx.env, cwd=ctx.folder)
+        ctx.procs.append(emulator)
+        up = ready or (lambda c: len(c.received('/pam/pressures')) > 100)
+        if not wait_until(lambda: up(ctx) or not emulator.alive(), 20.0, 0.05):
+            raise RuntimeError(f'the board did not come up: {emulator.stderr[-300:]}')
+        trigger(ctx, '/pam/driver_node/arm')
+        facts = then(ctx)
+        if id(emulator) not in ctx.killed:
+            emulator.stop()
+            time.sleep(0.5)
+        return facts
+    return act
+
+
+def commanding(seconds: float, period: float, u=(5.5, 5.5)):
+    """Valve commands every `period` s for `seconds` s."""
+    def act(ctx):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            ctx.io['commands'].publish(command_message(*u))
+            time.sleep(period)
+        return {}
+    return act
+
+
+def kill_board(then_wait: float):
+    def act(ctx):
+        emulator = ctx.procs[-1]
+        ctx.killed.add(id(emulator))
+        emulator.proc.kill()
+        time.sleep(then_wait)
+        return {}
+    return act
+
+
+def loop_running(ctx) -> None:
+    """Wait (at most 30 s) until the closed loop runs: pi_node answered 500 estimates since the
+    case began and its last command is fresh."""
+    commands = ctx.stack.topics['/pam/valve_command']
+    wait_until(lambda: len(commands.since(ctx.t0)) > 500 and
+               commands.items()[-1][0] > time.monotonic() - 0.1, 30.0, 0.05)
 
 
 def observe(seconds: float):
@@ -428,9 +516,10 @@ def observe(seconds: float):
 
 def wait_diag(node: str, predicate, timeout: float):
     """Wait (at most timeout s) for a /diagnostics status of node whose values satisfy
-    predicate; the case is then judged on the statuses after it."""
+    predicate(values, values before the case)."""
     def act(ctx):
-        wait_until(lambda: predicate(ctx.stack.values(node, ctx.t0)), timeout, 0.1)
+        wait_until(lambda: predicate(ctx.stack.values(node, ctx.t0), ctx.before.get(node, {})),
+                   timeout, 0.1)
         return {}
     return act
 
@@ -585,14 +674,15 @@ def feed_loss(node: str, unanswered_of):
 
 
 def serial_loss(ctx, facts):
-    """Gaps in the sample counter of /pam/pressures the probe received, less the frames
-    driver_node reports lost."""
+    """Gaps in the sample counter of /pam/pressures as the probe received it, less the samples
+    the consumer ukf_node reports lost (the driver numbers the device's ticks: a frame lost on
+    the line or the stream down while reconnecting is a gap downstream)."""
     gaps = SampleGaps()
     for m in ctx.received('/pam/pressures'):
         gaps.update(m.sample)
-    reported = ctx.delta('driver_node', 'lost frames')
     if gaps.received == 0:
         return '-'
+    reported = ctx.delta('ukf_node', 'samples lost')
     if math.isnan(reported):
         return 'n/a'
     return max(gaps.lost - int(reported), 0)
@@ -633,14 +723,6 @@ LOOP_OUT = RIG_OUT + [(M['JointEstimate'], '/pam/estimate'),
                       (M['ControllerState'], '/pam/controller_state')]
 
 
-def serial_group(name: str, emulator_args=(), driver_params=(), streams=True) -> Group:
-    """pam-emulator with a fault and driver_node (no command watchdog: nothing commands it)."""
-    return Group(name, {'pam-emulator': emulator(*emulator_args),
-                        'driver_node': driver('watchdog_timeout:=0.0', *driver_params,
-                                              streams=streams)},
-                 DRIVER_OUT, commands_io, ('driver_node',), serial_loss)
-
-
 GROUPS = {g.name: g for g in [
     Group('ukf', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node',
                                        matched('pressures', 'commands'))},
@@ -658,15 +740,10 @@ GROUPS = {g.name: g for g in [
     Group('driver', {'pam-emulator': emulator('--initial-command', '5.5', '5.5'),
                      'driver_node': driver('watchdog_timeout:=0.0')},
           DRIVER_OUT, commands_io, ('driver_node',)),
-    serial_group('serial_garbage', ('--garbage-every', '0.02')),
-    serial_group('serial_corrupt', ('--corrupt-every', '0.02')),
-    serial_group('serial_drop', ('--drop-every', '0.02')),
-    serial_group('serial_replug', ('--disconnect-at', '4.0', '--disconnect-for', '1.0')),
-    serial_group('serial_board_watchdog', ('--device-watchdog', '0.02'),
-                 ('heartbeat_period:=0.2',)),
-    serial_group('serial_stuck', ('--stuck-sensor', 'p1', '--stuck-at', '0.5')),
-    serial_group('serial_version', ('--protocol-version', '2.0'), streams=False),
-    serial_group('serial_unplugged'),
+    Group('serial', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node'),
+                     'driver_node': driver('watchdog_timeout:=0.0', streams=False)},
+          [*DRIVER_OUT, (M['JointEstimate'], '/pam/estimate')], commands_io,
+          ('driver_node', 'ukf_node'), serial_loss),
     Group('loop_sim', {'sim_node': NodeSpec('sim_node', 'pam_driver', (), 'sim_node'),
                        'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node'),
                        'pi_node': NodeSpec('pi_node', 'pam_controller', (), 'pi_node')},
@@ -841,7 +918,8 @@ CASES = [
          all_of(stepped(20), rises(SIM, 'out-of-range commands', 20))),
     Case('sim.stamps_zero', 'sim', '10 commands stamped 0', 'a step each (0: for the current '
          'step)', lockstep([(5.5, 5.5)] * 10, 'zero'), stepped(10)),
-    Case('sim.stamps_past', 'sim', '10 commands stamped 1 s before the current step', 'ignored '
+    Case('sim.stamps_past', 'sim', '10 commands stamped for the step before (t_k - 1 ms)',
+         'ignored '
          '(no step), counted', lockstep([(5.5, 5.5)] * 10, 'past'),
          all_of(stepped(0), rises(SIM, 'past commands ignored', 10))),
     Case('sim.stamps_decreasing', 'sim', 'a command for the current step, then 10 stamped 1, 2, '
@@ -873,54 +951,60 @@ CASES = [
          bad_params(DRV, ('watchdog_timeout', NAN), ('port', 5), ('safe_output', [NAN, 0.0]),
                     ('no_such_name', 1.0)), refused),
 
-    # --- serial faults of pam-emulator against driver_node (one emulator per case) ---------
-    Case('serial.garbage', 'serial_garbage', 'garbage bytes between frames every 20 ms',
-         'counted (garbage bytes); samples stream on',
-         observe(3.0), all_of(rises(DRV, 'garbage bytes', 1), alive('driver_node'))),
-    Case('serial.corrupt', 'serial_corrupt', 'a byte of a sample frame flipped every 20 ms',
-         'CRC errors counted, the frames lost reported', observe(3.0),
-         all_of(rises(DRV, 'crc errors', 1), rises(DRV, 'lost frames', 1))),
-    Case('serial.drop', 'serial_drop', 'a sample frame left out every 20 ms', 'sequence gaps '
-         'counted as lost frames', observe(3.0), rises(DRV, 'lost frames', 1)),
-    Case('serial.replug', 'serial_replug', 'unplugged at 4 s, replugged 1 s later (a new pty)',
-         'disconnect and reconnect counted; samples again after',
-         wait_diag(DRV, lambda v: number(v, 'reconnects', 0) >= 1, 15.0),
-         all_of(rises(DRV, 'disconnects', 1), rises(DRV, 'reconnects', 1),
-                diag_is(DRV, 'connected', lambda v: v == 'true', 'connected'))),
-    Case('serial.board_watchdog', 'serial_board_watchdog', 'board watchdog 20 ms, host '
-         'heartbeats every 200 ms', "the board's vents reported on /diagnostics", observe(3.0),
-         all_of(rises(DRV, 'board vents', 1), level_at_least(DRV, 1))),
-    Case('serial.stuck_sensor', 'serial_stuck', 'p1 ADC frozen from 0.5 s', 'sensor fault: safe '
-         'output, reported', wait_diag(DRV, lambda v: v.get('sensor fault', 'none') != 'none',
-                                       10.0),
+    # --- serial faults: a pam-emulator per case, driver_node and ukf_node running on -------
+    Case('serial.garbage', 'serial', 'garbage bytes between frames every 20 ms', 'counted '
+         '(garbage bytes); samples stream on', board(('--garbage-every', '0.02'), observe(3.0)),
+         all_of(rises(DRV, 'garbage bytes', 1), streams_on(2000))),
+    Case('serial.corrupt', 'serial', 'a byte of a sample frame flipped every 20 ms', 'CRC errors '
+         'counted, the frames lost reported', board(('--corrupt-every', '0.02'), observe(3.0)),
+         all_of(rises(DRV, 'crc errors', 100), rises(DRV, 'lost frames', 100))),
+    Case('serial.drop', 'serial', 'a sample frame left out every 20 ms', 'sequence gaps counted '
+         'as lost frames', board(('--drop-every', '0.02'), observe(3.0)),
+         rises(DRV, 'lost frames', 100)),
+    Case('serial.replug', 'serial', 'unplugged 3 s after the handshake, replugged 1 s later (a '
+         'new pty)', 'disconnect and reconnect counted; samples again after',
+         board(('--disconnect-at', '3.0', '--disconnect-for', '1.0'),
+               wait_diag(DRV, lambda v, b: number(v, 'reconnects', 0) >= number(
+                   b, 'reconnects', 0) + 2 and v.get('connected') == 'true', 15.0)),
+         all_of(rises(DRV, 'disconnects', 1), rises(DRV, 'reconnects', 2), streams_on(500))),
+    Case('serial.board_watchdog', 'serial', 'board watchdog 5 ms, commands every 20 ms',
+         "the board's vents reported on /diagnostics (ERROR while armed)",
+         board(('--device-watchdog', '0.005'), commanding(3.0, 0.02)),
+         all_of(rises(DRV, 'board vents', 10), status_seen(DRV, 2, 'board vented'))),
+    Case('serial.stuck_sensor', 'serial', 'p1 ADC frozen 1 s after the handshake', 'sensor '
+         'fault: safe output, reported',
+         board(('--stuck-sensor', 'p1', '--stuck-at', '1.0'),
+               wait_diag(DRV, lambda v, b: v.get('sensor fault', 'none') != 'none', 10.0)),
          all_of(diag_is(DRV, 'sensor fault', lambda v: v not in ('none', '(missing)'),
                         'a fault'), diag_is(DRV, 'armed', lambda v: v == 'false', 'safe'))),
-    Case('serial.version', 'serial_version', 'a board of protocol 2.0', 'refused at the '
-         'handshake, reported; the node runs on', observe(2.0),
-         all_of(diag_is(DRV, 'device refused', lambda v: 'version' in v, 'version'),
-                level_at_least(DRV, 2), alive('driver_node'))),
-    Case('serial.unplugged', 'serial_unplugged', 'the board process killed (unplugged, never '
-         'back)', 'device lost reported (ERROR), safe, retrying; the node runs on',
-         kill('pam-emulator', 2.5),
+    Case('serial.version', 'serial', 'a board of protocol 2.0', 'refused at the handshake, '
+         'reported (ERROR); the node runs on',
+         board(('--protocol-version', '2.0'), observe(1.0),
+               ready=lambda ctx: ctx.stack.values(DRV, ctx.t0).get('device refused', 'none')
+               != 'none'),
+         all_of(status_seen(DRV, 2, 'protocol version mismatch'), alive('driver_node'))),
+    Case('serial.unplugged', 'serial', 'the board process killed (unplugged, never back)',
+         'device lost reported (ERROR), safe; the node runs on, retrying',
+         board((), kill_board(2.5)),
          all_of(diag_is(DRV, 'connected', lambda v: v == 'false', 'disconnected'),
-                level_at_least(DRV, 2), alive('driver_node'))),
+                level_at_least(DRV, 2), alive('driver_node', 'ukf_node'))),
 
     # --- processes killed mid-run ----------------------------------------------------------
     Case('kill.ukf_node', 'loop_sim', 'SIGKILL of ukf_node in the closed loop on sim_node',
          'pi_node sends safe_command (5.5, 5.5) V within feedback_timeout (0.1 s)',
-         kill('ukf_node'), all_of(safe_within('/pam/valve_command', (5.5, 5.5), 0.1 + SAFE_SLACK,
-                                              'pi_node safe_command'),
-                                  alive('sim_node', 'pi_node'))),
+         kill('ukf_node', before=loop_running),
+         all_of(safe_within('/pam/valve_command', (5.5, 5.5), 0.1 + SAFE_SLACK,
+                            'pi_node safe_command'), alive('sim_node', 'pi_node'))),
     Case('kill.pi_node_sim', 'loop_sim', 'SIGKILL of pi_node in the closed loop on sim_node',
          'sim_node holds the last command (it has no command watchdog) and runs on',
-         kill('pi_node'), all_of(alive('sim_node', 'ukf_node'),
-                                 rises(SIM, 'samples published', 500))),
+         kill('pi_node', before=loop_running),
+         all_of(alive('sim_node', 'ukf_node'), rises(SIM, 'samples published', 500))),
     Case('kill.sim_node', 'loop_sim', 'SIGKILL of sim_node in the closed loop',
          'ukf_node reports its input stale; pi_node sends safe_command within 0.1 s',
-         kill('sim_node'), all_of(level_at_least(UKF, 1),
-                                  safe_within('/pam/valve_command', (5.5, 5.5),
-                                              0.1 + SAFE_SLACK, 'pi_node safe_command'),
-                                  alive('ukf_node', 'pi_node'))),
+         kill('sim_node', before=loop_running),
+         all_of(level_at_least(UKF, 1), safe_within('/pam/valve_command', (5.5, 5.5),
+                                                    0.1 + SAFE_SLACK, 'pi_node safe_command'),
+                alive('ukf_node', 'pi_node'))),
     Case('kill.pi_node_driver', 'loop_driver', 'SIGKILL of pi_node in the closed loop on '
          'driver_node (watchdog 0.3 s)', 'driver_node applies safe_output (0, 0) V within its '
          'watchdog', kill('pi_node', before=arm_driver),
@@ -1007,7 +1091,7 @@ def run_case(run: GroupRun, case: Case) -> Row:
     deaths += [f'{t.argv[0]} ({"hung" if t.code is None else t.code})' for t in ctx.tools
                if t.died]
     deaths += [f'{p.name} (exit {p.proc.returncode})' for p in ctx.procs
-               if not p.alive() and p.proc.returncode not in (0, 2)]
+               if not p.alive() and p.proc.returncode not in (0, 2) and id(p) not in ctx.killed]
     tracebacks = (run.stack.tracebacks() - tracebacks0 if run.stack else 0) + \
         sum(t.tracebacks for t in ctx.tools) + \
         sum(traceback_count(p.stderr + p.stdout) for p in ctx.procs)
