@@ -23,10 +23,10 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'pi_node = pam_controller.pi_node:main',
-            'reference_node = pam_controller.reference_node:main',
-            'pam-bringup = pam_controller.bringup:main',
-            'tracking_report = pam_controller.tracking_report:main',
+            'pi_node = pam_controller.entry_points:pi_node',
+            'reference_node = pam_controller.entry_points:reference_node',
+            'pam-bringup = pam_controller.entry_points:pam_bringup',
+            'tracking_report = pam_controller.entry_points:tracking_report',
         ],
     },
 )

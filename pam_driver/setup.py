@@ -22,14 +22,14 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'sim_node = pam_driver.sim_node:main',
-            'profile_player = pam_driver.profile_player:main',
-            'driver_node = pam_driver.driver_node:main',
-            'pam-emulator = pam_driver.emulator:main',
-            'bag_record = pam_driver.bag_record:main',
-            'bag_play = pam_driver.bag_play:main',
-            'pam-bag-info = pam_driver.bag_info:main',
-            'pam-bag-recover = pam_driver.bag_recover:main',
+            'sim_node = pam_driver.entry_points:sim_node',
+            'profile_player = pam_driver.entry_points:profile_player',
+            'driver_node = pam_driver.entry_points:driver_node',
+            'pam-emulator = pam_driver.entry_points:pam_emulator',
+            'bag_record = pam_driver.entry_points:bag_record',
+            'bag_play = pam_driver.entry_points:bag_play',
+            'pam-bag-info = pam_driver.entry_points:pam_bag_info',
+            'pam-bag-recover = pam_driver.entry_points:pam_bag_recover',
         ],
     },
 )

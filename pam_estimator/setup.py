@@ -22,10 +22,10 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'ukf_node = pam_estimator.ukf_node:main',
-            'pam-evaluate = pam_estimator.cli.evaluate:main',
-            'pam-identify = pam_estimator.cli.identify:main',
-            'pam-calibration-bags = pam_estimator.cli.calibration_bags:main',
+            'ukf_node = pam_estimator.entry_points:ukf_node',
+            'pam-evaluate = pam_estimator.entry_points:pam_evaluate',
+            'pam-identify = pam_estimator.entry_points:pam_identify',
+            'pam-calibration-bags = pam_estimator.entry_points:pam_calibration_bags',
         ],
     },
 )

@@ -20,8 +20,8 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'pam-simulate = pam_model.cli.simulate:main',
-            'pam-kappa = pam_model.cli.kappa:main',
+            'pam-simulate = pam_model.cli.entry_points:pam_simulate',
+            'pam-kappa = pam_model.cli.entry_points:pam_kappa',
         ],
     },
 )
