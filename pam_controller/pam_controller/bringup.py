@@ -64,8 +64,8 @@ KILL_TIMEOUT = 5.0       # s, SIGKILL -> reaped
 STACK_DUMP_WAIT = 1.0    # s for a hung node's stacks to reach the log before SIGKILL
 READER_JOIN = 2.0        # s, last output of a child after it exited
 # Exit codes of a child that count as a clean stop after we asked it to stop: rclpy nodes return 0
-# on Ctrl-C / SIGTERM; a process ended by the signal itself gives -2 / -15 (130 / 143 through a
-# shell). A SIGKILL is never clean.
+# on Ctrl-C / SIGTERM; one stopped while still importing exits 130 / 143 (pam_model.cli.startup);
+# a process ended by the signal itself gives -2 / -15. A SIGKILL is never clean.
 CLEAN_STOP_CODES = {0, -signal.SIGINT, 128 + signal.SIGINT, -signal.SIGTERM,
                     128 + signal.SIGTERM}
 COLOURS = ('36', '33', '35', '32', '34', '96', '93')   # ANSI: cyan, yellow, magenta, ...
