@@ -16,6 +16,9 @@ Service ~/enable (std_srvs/SetBool): false sends the valves to safe_command and 
 No feedback for feedback_timeout s (wall clock) also sends safe_command, and /diagnostics says
 so. Gains, limits and the anti-windup scheme can be changed at run time (ros2 param set); bad
 values (negative, NaN, u_min >= u_max, beta outside the limits) are rejected.
+A reference outside the rig's envelope (control_loop.ENVELOPE) is clamped to it, counted and
+reported (WARN); a non-finite one is ignored. Nothing non-finite is published (FiniteGuard: a
+command -> safe_command, a state field -> 0, u1/u2 -> safe_command; counted on /diagnostics).
 """
 
 from __future__ import annotations
