@@ -36,6 +36,7 @@ import argparse
 import math
 import os
 import re
+import signal
 import sys
 import tempfile
 import time
@@ -51,8 +52,8 @@ from fault_inputs import (HUGE, INF, NAN, Feed, Parameters, command_message,
                           copy_bag, estimate_message, flip_in_chunk, flip_unnoticed,
                           lockstep_command, pressures_message, remove_metadata,
                           remove_split_file, truncate, unanswered)
-from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, new_folder, number, run_tool,
-                         traceback_count)
+from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, maps_holds, new_folder, number,
+                         run_tool, traceback_count)
 from pam_driver.sample_gaps import SampleGaps
 from pam_driver.testing import (MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env,
                                 malformed_params_file, stamp_ns, wait_until)
@@ -61,6 +62,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BAGS = ROOT / 'bags'
 SETTLE = 0.3          # s after a case's inputs before the /diagnostics it is judged on
 SAFE_SLACK = 0.5      # s allowed on top of a watchdog's time on a loaded machine
+VERBOSE = False       # --verbose
 
 
 @dataclass
@@ -555,9 +557,9 @@ def bag_tools(ctx, bag: Path) -> dict:
 def damaged_bag(source: str, *damages):
     """A copy of bags/<source> with each damage(bag) applied, through every bag tool."""
     def act(ctx):
-        bag = copy_bag(BAGS / source, ctx.folder, 'damaged')
+        bag = copy_bag(BAGS / source, ctx.folder)
         done = [damage(bag) for damage in damages]
-        return {'runs': bag_tools(ctx, bag), 'bag_name': 'damaged', 'done': done}
+        return {'runs': bag_tools(ctx, bag), 'bag_name': source, 'done': done}
     return act
 
 
@@ -581,6 +583,36 @@ PARAMS_FILE_EXES = (('sim_node', 'pam_driver'), ('driver_node', 'pam_driver'),
                     ('bag_play', 'pam_driver'), ('ukf_node', 'pam_estimator'),
                     ('pi_node', 'pam_controller'), ('reference_node', 'pam_controller'),
                     ('tracking_report', 'pam_controller'))
+
+
+# --- stops during start-up
+#: C extensions of numpy and rclpy: the first one mapped, a process's imports are under way
+IMPORTING = ('_multiarray_umath', '_rclpy_pybind11')
+STARTUP_EXES = (*PARAMS_FILE_EXES, ('pam-evaluate', 'pam_estimator'),
+                ('pam-identify', 'pam_estimator'))
+
+
+def stopped_while_importing(sig: int):
+    """`sig` to every node and batch tool during its imports, three at a time."""
+    def act(ctx):
+        importing = (sig, maps_holds(*IMPORTING))
+        with ThreadPoolExecutor(3) as pool:
+            futures = {exe: pool.submit(run_tool, exe, package, (), ctx.env, ctx.folder, 60.0,
+                                        importing) for exe, package in STARTUP_EXES}
+            runs = {exe: f.result() for exe, f in futures.items()}
+        ctx.tools += runs.values()
+        return {'runs': runs, 'code': 128 + sig}
+    return act
+
+
+def quiet_exits(ctx, facts):
+    """Each run exited with facts['code'] and printed nothing."""
+    bad = [f'{exe}: exit {run.code}, {len(run.stdout + run.stderr)} bytes of output'
+           for exe, run in facts['runs'].items()
+           if run.code != facts['code'] or run.stdout or run.stderr]
+    n = len(facts['runs'])
+    return Verdict(not bad, f"{n - len(bad)}/{n} exit {facts['code']}, silent" +
+                   ('; ' + '; '.join(bad) if bad else ''))
 
 
 def params_file_to_all(kind: str):
@@ -760,6 +792,7 @@ GROUPS = {g.name: g for g in [
           RIG_OUT, None, ('sim_node',)),
     Group('bags'),
     Group('params_files'),
+    Group('startup'),
 ]}
 
 
@@ -1012,6 +1045,12 @@ CASES = [
                             'driver_node safe_output'),
                 diag_is(DRV, 'safe reason', lambda v: 'watchdog' in v, 'watchdog'),
                 alive('driver_node', 'ukf_node'))),
+    Case('kill.sigint_importing', 'startup', 'SIGINT to every node and batch tool during its '
+         'imports (Ctrl-C at start-up)', 'exit 130 at once, nothing printed',
+         stopped_while_importing(signal.SIGINT), quiet_exits),
+    Case('kill.sigterm_importing', 'startup', 'SIGTERM to every node and batch tool during its '
+         'imports (pam-bringup stopping a node not started yet)', 'exit 143 at once, nothing '
+         'printed', stopped_while_importing(signal.SIGTERM), quiet_exits),
     Case('kill.bag_record', 'record', 'SIGKILL of bag_record after 3 s of recording',
          'pam-bag-recover rebuilds the bag (exit 0), pam-bag-info reads it',
          kill_recorder, tools_answer({'recover': 0, 'info (recovered)': 0})),
@@ -1095,6 +1134,13 @@ def run_case(run: GroupRun, case: Case) -> Row:
     tracebacks = (run.stack.tracebacks() - tracebacks0 if run.stack else 0) + \
         sum(t.tracebacks for t in ctx.tools) + \
         sum(traceback_count(p.stderr + p.stdout) for p in ctx.procs)
+    if VERBOSE and not verdict.ok:
+        outputs = [(' '.join(t.argv), t.stderr) for t in ctx.tools]
+        outputs += [(p.name, p.stderr) for p in ctx.procs]
+        if run.stack:
+            outputs += [(n, p.stderr) for n, p in run.stack.procs.items()]
+        for name, err in outputs:
+            print(f'--- {case.name}: {name}\n{err[-1500:]}', file=sys.stderr)
     for p in ctx.procs:
         p.close()
     non_finite = run.stack.watch.between(window, time.monotonic()) if run.stack else []
@@ -1136,7 +1182,11 @@ def main(argv=None) -> int:
     parser.add_argument('--only', metavar='PATTERN',
                         help='run the cases whose name or group matches this regular expression')
     parser.add_argument('--list', action='store_true', help='list the cases and exit')
+    parser.add_argument('--verbose', action='store_true',
+                        help="print the end of every process's stderr of a failed case")
     args = parser.parse_args(argv)
+    global VERBOSE
+    VERBOSE = args.verbose
     cases = [c for c in CASES if not args.only or re.search(args.only, c.name)
              or re.search(args.only, c.group)]
     if args.list:

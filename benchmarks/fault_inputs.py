@@ -163,17 +163,9 @@ class Parameters:
 
 
 # ---------------------------------------------------------------------------- bags
-def copy_bag(source: Path, folder: Path, name: str) -> Path:
-    """A copy of bag directory `source` as folder/name (files renamed to match)."""
-    target = folder / name
-    target.mkdir(parents=True)
-    for f in sorted(source.iterdir()):
-        new = f.name.replace(source.name, name) if f.suffix == '.mcap' else f.name
-        shutil.copyfile(f, target / new)
-    meta = target / 'metadata.yaml'
-    if meta.exists():
-        meta.write_text(meta.read_text().replace(source.name, name))
-    return target
+def copy_bag(source: Path, folder: Path) -> Path:
+    """A copy of bag directory `source` in `folder`, under its own name (its files name it)."""
+    return Path(shutil.copytree(source, folder / source.name))
 
 
 def mcap_files(bag: Path) -> list[Path]:

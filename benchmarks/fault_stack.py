@@ -161,20 +161,42 @@ class Tool:
         return [line for line in self.stderr.splitlines() if line.strip()]
 
 
-def run_tool(exe: str, package: str, args, env: dict, cwd, timeout: float = TOOL_TIMEOUT) -> Tool:
+def run_tool(exe: str, package: str, args, env: dict, cwd, timeout: float = TOOL_TIMEOUT,
+             interrupt: tuple | None = None) -> Tool:
+    """Run a command-line tool (or a node that ends by itself) to its end. interrupt=(sig,
+    when): send signal `sig` as soon as when(pid) holds (polled every ms)."""
     argv = [executable(exe, package), *map(str, args)]
     start = time.monotonic()
     proc = subprocess.Popen(argv, env=env, cwd=cwd, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
                             start_new_session=True)
     try:
-        out, err = proc.communicate(timeout=timeout)
+        if interrupt is not None:
+            sig, when = interrupt
+            while proc.poll() is None and time.monotonic() < start + timeout:
+                if when(proc.pid):
+                    break
+                time.sleep(0.001)
+            proc.send_signal(sig)
+        out, err = proc.communicate(timeout=max(timeout - (time.monotonic() - start), 1.0))
         code = proc.returncode
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         out, err = proc.communicate()
         code = None
     return Tool([exe, *map(str, args)], code, out, err, time.monotonic() - start)
+
+
+def maps_holds(*names: str):
+    """when(pid) for run_tool's interrupt: the process has mapped a file whose path holds one
+    of `names` (e.g. a C extension: its imports are under way)."""
+    def when(pid: int) -> bool:
+        try:
+            maps = Path(f'/proc/{pid}/maps').read_text()
+        except OSError:
+            return False
+        return any(name in maps for name in names)
+    return when
 
 
 class Stack:
