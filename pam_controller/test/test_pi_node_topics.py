@@ -1,15 +1,18 @@
 """pi_node as a real process fed by the test's probe: one command per estimate with its stamp,
 run-time gain changes (valid accepted, invalid rejected), the enable service, the feedback
-timeout, and a reference switching the mode."""
+timeout, a reference switching the mode; a huge reference clamped to the envelope, nothing
+non-finite published."""
 
 import math
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from std_srvs.srv import SetBool
 
-from pam_driver.testing import wait_until
+from pam_driver.diagnostics import WARN, status_values
+from pam_driver.testing import diagnostic_statuses, wait_until
 from pam_interfaces.msg import ControllerState, JointEstimate, Reference, ValveCommand
 
 
@@ -26,14 +29,17 @@ def double_param(name, value):
                                                      double_value=value))
 
 
-def test_pi_node_commands_gains_enable_timeout(node_process, probe):
-    pi = node_process('pi_node', 'pam_controller', '-p', 'initial_reference:=0.1',
-                      '-p', 'feedback_timeout:=0.2')
+def start_pi_node(node_process, probe, *params):
+    """pi_node with `-p` params, the probe's subscriptions and publishers, and feed(n, angle,
+    torque, start): n estimates 1 ms apart from stamp `start` (s)."""
+    pi = node_process('pi_node', 'pam_controller', *params)
     commands = probe.subscribe(ValveCommand, '/pam/valve_command')
     states = probe.subscribe(ControllerState, '/pam/controller_state')
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics')
     estimates = probe.publisher(JointEstimate, '/pam/estimate')
     references = probe.publisher(Reference, '/pam/reference')
-    assert wait_until(lambda: estimates.get_subscription_count() > 0, 60.0), pi.stderr
+    assert wait_until(lambda: estimates.get_subscription_count() > 0
+                      and references.get_subscription_count() > 0, 60.0), pi.stderr
 
     def feed(n, angle=0.0, torque=0.0, start=1.0):
         for k in range(n):
@@ -42,6 +48,12 @@ def test_pi_node_commands_gains_enable_timeout(node_process, probe):
             msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round(t % 1 * 1e9))
             estimates.publish(msg)
             time.sleep(0.001)
+    return pi, commands, states, diagnostics, references, feed
+
+
+def test_pi_node_commands_gains_enable_timeout(node_process, probe):
+    pi, commands, states, _, references, feed = start_pi_node(
+        node_process, probe, '-p', 'initial_reference:=0.1', '-p', 'feedback_timeout:=0.2')
 
     feed(50)
     pi.wait_for(lambda: len(commands) >= 50, 20.0, '50 commands')
@@ -91,39 +103,17 @@ def test_a_huge_reference_is_clamped_and_nothing_non_finite_is_published(node_pr
     """The issue: with back-calculation, one reference of 1e308 gave (nan, nan) commands until
     ~/enable false -> true, and /diagnostics said OK. Now the reference is clamped to the
     rig's envelope (+-25 deg), counted on /diagnostics (WARN), and every field stays finite."""
-    from diagnostic_msgs.msg import DiagnosticArray
-
-    from pam_driver.diagnostics import WARN, status_values
-    from pam_driver.testing import diagnostic_statuses
-
-    pi = node_process('pi_node', 'pam_controller', '-p', 'anti_windup:=back_calculation',
-                      '-p', 'initial_reference:=0.1')
-    commands = probe.subscribe(ValveCommand, '/pam/valve_command')
-    states = probe.subscribe(ControllerState, '/pam/controller_state')
-    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics')
-    estimates = probe.publisher(JointEstimate, '/pam/estimate')
-    references = probe.publisher(Reference, '/pam/reference')
-    assert wait_until(lambda: estimates.get_subscription_count() > 0
-                      and references.get_subscription_count() > 0, 60.0), pi.stderr
-    step = [0]
-
-    def feed(n):
-        for _ in range(n):
-            step[0] += 1
-            msg = JointEstimate(angle=0.0)
-            msg.header.stamp.sec, msg.header.stamp.nanosec = 1 + step[0] // 1000, \
-                (step[0] % 1000) * 1_000_000
-            estimates.publish(msg)
-            time.sleep(0.001)
-
-    feed(20)
+    pi, commands, states, diagnostics, references, feed = start_pi_node(
+        node_process, probe, '-p', 'anti_windup:=back_calculation', '-p',
+        'initial_reference:=0.1')
+    feed(20, start=1.0)
     pi.wait_for(lambda: len(commands) >= 20, 20.0, 'commands before the huge reference')
-    for huge in (1e308, 5e306):
+    for start, huge in ((2.0, 1e308), (3.0, 5e306)):
         references.publish(Reference(mode=Reference.ANGLE, value=huge))
         pi.wait_for(lambda: 'clamped' in pi.stderr + pi.stdout, 10.0, 'the clamp warning')
-        feed(100)
+        feed(100, start=start)
     references.publish(Reference(mode=Reference.ANGLE, value=0.05))     # a sane one again
-    feed(300)
+    feed(300, start=4.0)
     pi.wait_for(lambda: len(states) >= 420, 20.0, 'every command and state')
     fields = ('reference', 'feedback', 'error', 'p_term', 'i_term', 'u1', 'u2')
     for state in states.messages():
