@@ -112,3 +112,21 @@ def test_failing_callback_gives_error_status():
 def test_publisher_rejects_bad_period():
     with pytest.raises(ValueError):
         DiagnosticsPublisher(_FakeNode(), 'x', 'hw', lambda: (OK, '', {}), period=0.0)
+
+
+def test_checks_are_merged_into_the_status():
+    """add_check: values appended; a problem appended to the message and the level raised to
+    the check's level only if worse; no problem: the callback's status as it is."""
+    level = [OK]
+    pub = DiagnosticsPublisher(_FakeNode(), 'x', 'hw',
+                               lambda: (level[0], 'running', {'a': 1}))
+    problem = ['']
+    pub.add_check(lambda: (WARN, problem[0], {'b': 2}))
+    status = pub.build()
+    assert (status.level, status.message, status_values(status)) == (
+        OK, 'running', {'a': '1', 'b': '2'})
+    problem[0] = '3 values substituted'
+    status = pub.build()
+    assert (status.level, status.message) == (WARN, 'running; 3 values substituted')
+    level[0] = ERROR
+    assert pub.build().level == ERROR
