@@ -92,6 +92,7 @@ def test_help_and_invalid_parameters():
     assert result.returncode == 0 and 'process_noise' in result.stdout
     for args, message in [(['-p', 'joint_mode:=sideways'], "'joint_mode'"),
                           (['-p', 'measurement_noise:=[1.0]'], "'measurement_noise'"),
+                          (['-p', 'lost_samples_warn_ratio:=1.5'], "'lost_samples_warn_ratio'"),
                           (['-p', 'model_parameters:=/nonexistent.yaml'], 'nonexistent.yaml')]:
         result = subprocess.run([node, '--ros-args', *args], capture_output=True, text=True,
                                 timeout=60)
