@@ -81,15 +81,16 @@ class Frame:
         return NAMES.get(self.type, f'0x{self.type:02x}')
 
     def fields(self) -> tuple:
-        """The payload unpacked by the frame type's struct (ProtocolError if it does not fit)."""
+        """The payload unpacked by the frame type's struct (ProtocolError if it is shorter).
+        Bytes beyond it are fields a later minor version added at the end: ignored."""
         if self.type not in PAYLOADS:
             raise ProtocolError(f'unknown frame type 0x{self.type:02x}')
         layout = PAYLOADS[self.type]
         size = 0 if layout is None else layout.size
-        if len(self.payload) != size:
+        if len(self.payload) < size:
             raise ProtocolError(f'{self.name} payload of {len(self.payload)} bytes, '
                                 f'expected {size}')
-        return () if layout is None else layout.unpack(self.payload)
+        return () if layout is None else layout.unpack_from(self.payload)
 
 
 # ---- payload helpers ---------------------------------------------------------------------------

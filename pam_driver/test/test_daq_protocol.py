@@ -97,6 +97,18 @@ def test_sequence_wraps_and_bad_payload():
         proto.Frame(0x42, 0, b'').fields()
 
 
+def test_fields_a_later_minor_version_appends_are_ignored():
+    """PROTOCOL.md: a minor version adds fields at the end of a payload only."""
+    sample = proto.Sample(7, 1, 2, -3, 4, proto.STATUS_VENTED)
+    frame = next(iter(proto.Decoder().feed(proto.sample(0, sample))))
+    longer = proto.Frame(frame.type, frame.seq, frame.payload + b'\x01\x02\x03')
+    assert proto.parse_sample(longer) == sample
+    info = proto.DeviceInfo(1, 7, 1000, 12, 12, 0)
+    ack = next(iter(proto.Decoder().feed(proto.hello_ack(0, info))))
+    assert proto.parse_hello_ack(proto.Frame(ack.type, 0, ack.payload + b'\x00')) == info
+    assert proto.Frame(proto.HEARTBEAT, 0, b'\x09').fields() == ()
+
+
 def test_tick_counter_counts_device_samples_and_never_goes_back():
     ticks = proto.TickCounter()
     assert [ticks.update(t) for t in (500, 501, 504, 505)] == [1, 2, 5, 6]   # 2 lost on the line
