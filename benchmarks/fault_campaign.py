@@ -43,7 +43,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import rclpy
 from rclpy.context import Context
@@ -156,7 +156,8 @@ def rises(node: str, key: str, at_least: float, at_most: float = math.inf):
     return check
 
 
-def diag_is(node: str, key: str, predicate, what: str):
+def diag_is(node: str, key: str, predicate):
+    """predicate(value) of a /diagnostics value of `node` after the case."""
     def check(ctx, facts):
         value = ctx.after(node).get(key, '(missing)')
         return Verdict(bool(predicate(value)), f"'{key}' {value}")
@@ -230,11 +231,12 @@ def applied(u1: float, u2: float):
 def refused(ctx, facts):
     """Every parameter change in facts['results'] was refused with a reason, and the value read
     back afterwards is the one before."""
-    bad = [f'{n}={v!r}: {"accepted" if ok else "no reason"}'
-           for n, v, ok, reason, _, _ in facts['results'] if ok or not reason]
-    changed = [f'{n} {old!r} -> {new!r}' for n, _, _, _, old, new in facts['results']
-               if old != new and not (_is_nan(old) and _is_nan(new))]
-    total = len(facts['results'])
+    results = facts['results']
+    bad = [f'{r.name}={r.value!r}: {"accepted" if r.ok else "no reason"}' for r in results
+           if r.ok or not r.reason]
+    changed = [f'{r.name} {r.before!r} -> {r.after!r}' for r in results
+               if r.before != r.after and not (_is_nan(r.before) and _is_nan(r.after))]
+    total = len(results)
     text = f'{total - len(bad)}/{total} refused with a reason, values unchanged'
     if bad or changed:
         text = f'{total - len(bad)}/{total} refused; ' + '; '.join(bad + changed)
@@ -242,10 +244,12 @@ def refused(ctx, facts):
 
 
 def accepted(ctx, facts):
-    rows = [f'{n}={v!r} {"set" if ok and new == v else f"NOT set ({reason}) -> {new!r}"}'
-            for n, v, ok, reason, _, new in facts['results']]
-    return Verdict(all(ok and new == v for n, v, ok, _, _, new in facts['results']),
-                   ', '.join(rows))
+    """Every parameter change in facts['results'] was accepted and reads back."""
+    results = facts['results']
+    good = [r.ok and r.after == r.value for r in results]
+    return Verdict(all(good), ', '.join(
+        f'{r.name}={r.value!r} ' + ('set' if g else f'NOT set ({r.reason}) -> {r.after!r}')
+        for r, g in zip(results, good)))
 
 
 def _is_nan(value) -> bool:
@@ -385,7 +389,7 @@ def lockstep_decreasing(n: int):
 
 
 def driver_commands(commands, stamps='now'):
-    """Valve commands to driver_node, stamped now, 0 or 10 s back; then a good (5.5, 5.5)."""
+    """Valve commands to driver_node, stamped now, 0, 10 s back or 1, 2, ... s back."""
     def act(ctx):
         for i, (u1, u2) in enumerate(commands):
             ns = {'now': None, 'zero': 0, 'past': time.time_ns() - 10_000_000_000,
@@ -406,16 +410,27 @@ def in_turn(*acts):
     return act
 
 
+class ParamChange(NamedTuple):
+    """One run-time parameter change and its answer."""
+
+    name: str
+    value: object
+    ok: bool
+    reason: str
+    before: object       # the value read back before the change
+    after: object        # and after it
+
+
 def set_parameters(node: str, changes, then=None):
-    """Set each (name, value) alone through node's SetParameters service; record
-    (name, value, successful, reason, value before, value after)."""
+    """Set each (name, value) alone through node's SetParameters service (ParamChange each),
+    then `then(ctx)` if given."""
     def act(ctx):
         client = Parameters(ctx.stack.probe, f'/pam/{node}')
         results = []
         for name, value in changes:
-            old = client.get(name)
+            before = client.get(name)
             ok, reason = client.set(name, value)
-            results.append((name, value, ok, reason, old, client.get(name)))
+            results.append(ParamChange(name, value, ok, reason, before, client.get(name)))
         facts = {'results': results}
         if then is not None:
             facts.update(then(ctx))
@@ -529,7 +544,7 @@ def wait_diag(node: str, predicate, timeout: float):
 def kill_recorder(ctx):
     """SIGKILL bag_record after 3 s of recording, then pam-bag-recover and pam-bag-info."""
     time.sleep(3.0)
-    ctx.t_kill = ctx.stack.kill('bag_record')
+    ctx.stack.kill('bag_record')
     bag = ctx.run.folder / 'recorded'
     runs = {'recover': ctx.tool('pam-bag-recover', 'pam_driver', bag)}
     runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
@@ -879,24 +894,21 @@ CASES = [
     Case('pi.reference_nan', 'pi', 'reference ANGLE NaN, then 20 estimates', 'reference '
          'refused; finite commands', feed_values('estimates', [0.0] * 20,
                                                  before=reference(ANGLE, NAN)),
-         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: math.isfinite(float(v)),
-                                     'finite'))),
+         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: math.isfinite(float(v))))),
     Case('pi.reference_inf', 'pi', 'reference ANGLE +inf, then -inf, then 20 estimates',
          'reference refused or clamped to the envelope; finite commands',
          feed_values('estimates', [0.0] * 20, before=lambda ctx: (
              reference(ANGLE, INF)(ctx), reference(ANGLE, -INF)(ctx))),
-         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: math.isfinite(float(v)),
-                                     'finite'))),
+         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: math.isfinite(float(v))))),
     Case('pi.reference_huge', 'pi', 'reference ANGLE 1e308 rad, then 20 estimates', 'reference '
          'clamped to the envelope; finite commands',
          feed_values('estimates', [0.0] * 20, before=reference(ANGLE, 1e308)),
-         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: abs(float(v)) <= 1.0,
-                                     'clamped'))),
+         all_of(ANSWERED_PI, diag_is(PI, 'reference', lambda v: abs(float(v)) <= 1.0))),
     Case('pi.reference_mode', 'pi', 'reference mode 7 (no such mode), then 20 estimates',
          'reference refused; finite commands',
          feed_values('estimates', [0.0] * 20, before=lambda ctx: (
              reference(ANGLE, 0.0)(ctx), time.sleep(0.05), reference(7, 0.1)(ctx))),
-         all_of(ANSWERED_PI, diag_is(PI, 'mode', lambda v: v == 'angle', 'angle'))),
+         all_of(ANSWERED_PI, diag_is(PI, 'mode', lambda v: v == 'angle'))),
     Case('pi.stamps_past', 'pi', '20 estimates stamped 10 s in the past', 'answered; the '
          'step back does not update the integral (counted as implausible dt)',
          feed_values('estimates', [0.0] * 20, 'past'),
@@ -1008,8 +1020,8 @@ CASES = [
          'fault: safe output, reported',
          board(('--stuck-sensor', 'p1', '--stuck-at', '1.0'),
                wait_diag(DRV, lambda v, b: v.get('sensor fault', 'none') != 'none', 10.0)),
-         all_of(diag_is(DRV, 'sensor fault', lambda v: v not in ('none', '(missing)'),
-                        'a fault'), diag_is(DRV, 'armed', lambda v: v == 'false', 'safe'))),
+         all_of(diag_is(DRV, 'sensor fault', lambda v: v not in ('none', '(missing)')),
+                diag_is(DRV, 'armed', lambda v: v == 'false'))),
     Case('serial.version', 'serial', 'a board of protocol 2.0', 'refused at the handshake, '
          'reported (ERROR); the node runs on',
          board(('--protocol-version', '2.0'), observe(1.0),
@@ -1019,7 +1031,7 @@ CASES = [
     Case('serial.unplugged', 'serial', 'the board process killed (unplugged, never back)',
          'device lost reported (ERROR), safe; the node runs on, retrying',
          board((), kill_board(2.5)),
-         all_of(diag_is(DRV, 'connected', lambda v: v == 'false', 'disconnected'),
+         all_of(diag_is(DRV, 'connected', lambda v: v == 'false'),
                 level_at_least(DRV, 2), alive('driver_node', 'ukf_node'))),
 
     # --- processes killed mid-run ----------------------------------------------------------
@@ -1043,7 +1055,7 @@ CASES = [
          'watchdog', kill('pi_node', before=arm_driver),
          all_of(safe_within('/pam/driver_node/applied_command', (0.0, 0.0), 0.3 + SAFE_SLACK,
                             'driver_node safe_output'),
-                diag_is(DRV, 'safe reason', lambda v: 'watchdog' in v, 'watchdog'),
+                diag_is(DRV, 'safe reason', lambda v: 'watchdog' in v),
                 alive('driver_node', 'ukf_node'))),
     Case('kill.sigint_importing', 'startup', 'SIGINT to every node and batch tool during its '
          'imports (Ctrl-C at start-up)', 'exit 130 at once, nothing printed',
@@ -1134,7 +1146,7 @@ def run_case(run: GroupRun, case: Case) -> Row:
     tracebacks = (run.stack.tracebacks() - tracebacks0 if run.stack else 0) + \
         sum(t.tracebacks for t in ctx.tools) + \
         sum(traceback_count(p.stderr + p.stdout) for p in ctx.procs)
-    if VERBOSE and not verdict.ok:
+    if VERBOSE and (not verdict.ok or deaths or tracebacks):
         outputs = [(' '.join(t.argv), t.stderr) for t in ctx.tools]
         outputs += [(p.name, p.stderr) for p in ctx.procs]
         if run.stack:
@@ -1173,6 +1185,14 @@ def print_table(rows: list[Row]) -> bool:
           f'{totals[0]} | {totals[1]} | {totals[2]} | {totals[3]} |')
     if failed:
         print(f'\nnot as expected: {", ".join(failed)}')
+    fields: dict[str, int] = {}
+    for hit in (h for r in rows for h in r.non_finite):
+        where = f'{hit.topic} {hit.field} = {hit.value}'
+        fields[where] = fields.get(where, 0) + 1
+    if fields:
+        print('\nnon-finite values received, by field:')
+        for where, n in sorted(fields.items(), key=lambda item: -item[1]):
+            print(f'  {n:5d}  {where}')
     return not failed and totals == (0, 0, 0, 0)
 
 

@@ -19,7 +19,7 @@ import subprocess
 import tempfile
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from pam_driver.executables import find_executable
@@ -87,7 +87,7 @@ def non_finite_fields(msg, prefix: str = '') -> list[tuple[str, str]]:
     """(field path, value) of every non-finite number in a message: float fields, float arrays,
     nested messages and sequences of them; for a diagnostic_msgs/KeyValue its value string."""
     if type(msg).__name__ == 'KeyValue':
-        return [(f'{prefix}[{msg.key}]', s) for s in diagnostic_number_strings(msg.value)
+        return [(prefix.rstrip('.'), s) for s in diagnostic_number_strings(msg.value)
                 if not math.isfinite(float(s))]
     found = []
     for name in msg.get_fields_and_field_types():
@@ -98,7 +98,7 @@ def non_finite_fields(msg, prefix: str = '') -> list[tuple[str, str]]:
         elif isinstance(value, list) and value and hasattr(value[0],
                                                            'get_fields_and_field_types'):
             for i, item in enumerate(value):
-                label = getattr(item, 'name', '') or str(i)
+                label = getattr(item, 'name', '') or getattr(item, 'key', '') or str(i)
                 found += non_finite_fields(item, f'{path}[{label}].')
         else:
             found += [(path, repr(v)) for v in _float_items(value) if not math.isfinite(v)]
