@@ -646,6 +646,36 @@ def params_file_to_all(kind: str):
     return act
 
 
+#: A double parameter of each node, for bad start-up values.
+DOUBLE_PARAM = {'sim_node': 'rate', 'driver_node': 'watchdog_timeout', 'ukf_node': 'pressure_min',
+                'pi_node': 'kp_angle', 'reference_node': 'amplitude',
+                'profile_player': 'duration', 'bag_record': 'chunk_interval', 'bag_play': 'rate',
+                'tracking_report': 'duration'}
+
+
+def start_with_bad_value(value: str):
+    """Every node started with `-p <one of its double parameters>:=value`, three at a time."""
+    def act(ctx):
+        with ThreadPoolExecutor(3) as pool:
+            futures = {exe: pool.submit(ctx.tool, exe, package, '--ros-args', '-p',
+                                        f'{DOUBLE_PARAM[exe]}:={value}')
+                       for exe, package in PARAMS_FILE_EXES}
+            return {'runs': {exe: f.result() for exe, f in futures.items()}}
+    return act
+
+
+def bad_value_refused(ctx, facts):
+    """Every node exited with code 2 and one stderr line naming its parameter."""
+    bad = []
+    for exe, run in facts['runs'].items():
+        lines = run.lines()
+        if run.code != 2 or len(lines) != 1 or f"parameter '{DOUBLE_PARAM[exe]}'" not in lines[0]:
+            bad.append(f'{exe}: exit {run.code}, {len(lines)} lines: {(lines or [""])[0][:100]}')
+    n = len(facts['runs'])
+    return Verdict(not bad, f'{n - len(bad)}/{n} exit 2, one line naming the parameter' +
+                   ('; ' + '; '.join(bad) if bad else ''))
+
+
 def unknown_name_in_every_node(ctx):
     """Every node started with a params file setting an unknown name (and the bag it needs):
     each must warn about it; stopped as soon as all did (or after 60 s)."""
@@ -1095,6 +1125,15 @@ CASES = [
            'every node and pam-bringup: exit 2, one line naming the file' +
            ('' if PF[kind][1] is None else ' and the line'),
            params_file_to_all(kind), params_file_refused) for kind in PF],
+    Case('params.start_nan', 'params_files', 'every node started with a double parameter '
+         '-p NAME:=nan', 'exit 2, one line naming the parameter', start_with_bad_value('nan'),
+         bad_value_refused),
+    Case('params.start_huge', 'params_files', 'every node started with a double parameter '
+         '-p NAME:=1e300', 'exit 2, one line naming the parameter',
+         start_with_bad_value('1e300'), bad_value_refused),
+    Case('params.start_type', 'params_files', "every node started with a double parameter "
+         "-p NAME:=abc", 'exit 2, one line naming the parameter', start_with_bad_value('abc'),
+         bad_value_refused),
     Case('params_file.unknown_name', 'params_files', 'params file setting no_such_parameter',
          'every node warns, naming it', unknown_name_in_every_node, unknown_name_warned),
 ]
