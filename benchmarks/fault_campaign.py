@@ -729,11 +729,48 @@ def ros(*params) -> tuple:
     return tuple(args)
 
 
-def matched(*keys):
-    """Ready when the probe's publishers io[key] have a subscriber each."""
-    return lambda stack: all(stack.io[k].publisher.get_subscription_count() > 0
-                             if isinstance(stack.io[k], Feed)
-                             else stack.io[k].get_subscription_count() > 0 for k in keys)
+def answered_ping(ping, answered):
+    """ready(stack, since) of a node the probe feeds: at each poll ping(stack) sends it a good
+    input, until answered(stack, since) sees it answered. A publisher that sees its subscriber
+    can still be unknown to it (DDS matches each pair of endpoints on its own, up to one 3 s
+    announcement period apart), and what it sends before then is dropped."""
+    def ready(stack, since):
+        if answered(stack, since):
+            return True
+        ping(stack)
+        return False
+    return ready
+
+
+def received_since(topic: str, predicate=lambda m: True):
+    return lambda stack, since: any(predicate(m) for m in stack.topics[topic].since(since))
+
+
+def diag_since(node: str, key: str):
+    """A /diagnostics counter of `node` received after `since` is above 0."""
+    return lambda stack, since: number(stack.values(node, since), key, 0.0) > 0
+
+
+def both(*checks):
+    return lambda stack, since: all(c(stack, since) for c in checks)
+
+
+def ukf_ping(stack):
+    stack.io['commands'].publish(command_message(5.5, 5.5))
+    stack.io['pressures'].send([None], period=0.0)
+
+
+def pi_ping(stack):
+    stack.io['estimates'].send([0.0], period=0.0)
+
+
+def lockstep_ping(stack):
+    lockstep_command(stack.io['commands'], stack.topics['/pam/pressures'], 5.5, 5.5,
+                     timeout=0.1)
+
+
+def driver_ping(stack):
+    stack.io['commands'].publish(command_message(5.5, 5.5))
 
 
 def feed_loss(node: str, unanswered_of):
@@ -784,11 +821,16 @@ def commands_io(stack):
 def emulator(*args) -> NodeSpec:
     """pam-emulator on a pty linked at ./pam_daq (in the group's folder)."""
     return NodeSpec('pam-emulator', 'pam_driver', ('--link', 'pam_daq', *args),
-                    ready=lambda stack: (stack.folder / 'pam_daq').is_symlink())
+                    ready=lambda stack, since: (stack.folder / 'pam_daq').is_symlink())
 
 
-def driver(*params, streams: bool = True) -> NodeSpec:
-    ready = (lambda stack: len(stack.topics['/pam/pressures']) > 0) if streams else None
+def driver(*params, streams: bool = True, ping: bool = False) -> NodeSpec:
+    """driver_node on ./pam_daq; ready when samples flow (streams) and, with ping, when a
+    command from the probe reached it ('commands received' on /diagnostics)."""
+    checks = [received_since('/pam/pressures')] if streams else []
+    if ping:
+        checks.append(diag_since('driver_node', 'commands received'))
+    ready = answered_ping(driver_ping if ping else (lambda stack: None), both(*checks))
     return NodeSpec('driver_node', 'pam_driver', ros('port:=pam_daq', *params),
                     diag_name='driver_node', ready=ready)
 
@@ -802,20 +844,23 @@ LOOP_OUT = RIG_OUT + [(M['JointEstimate'], '/pam/estimate'),
 
 GROUPS = {g.name: g for g in [
     Group('ukf', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node',
-                                       matched('pressures', 'commands'))},
+                                       answered_ping(ukf_ping, both(
+                                           received_since('/pam/estimate'),
+                                           diag_since('ukf_node', 'valve commands received'))))},
           [(M['JointEstimate'], '/pam/estimate')], ukf_io, ('ukf_node',),
           feed_loss('ukf_node', estimates_of)),
     Group('pi', {'pi_node': NodeSpec('pi_node', 'pam_controller', (), 'pi_node',
-                                     matched('estimates', 'reference'))},
+                                     answered_ping(pi_ping, received_since(
+                                         '/pam/valve_command')))},
           [(M['ValveCommand'], '/pam/valve_command'),
            (M['ControllerState'], '/pam/controller_state')], pi_io, ('pi_node',),
           feed_loss('pi_node', commands_of)),
     Group('sim', {'sim_node': NodeSpec('sim_node', 'pam_driver', ros('timing:=lockstep'),
-                                       'sim_node', lambda s: matched('commands')(s) and
-                                       len(s.topics['/pam/pressures']) > 0)},
+                                       'sim_node', answered_ping(lockstep_ping, diag_since(
+                                           'sim_node', 'commands received')))},
           RIG_OUT, commands_io, ('sim_node',)),
     Group('driver', {'pam-emulator': emulator('--initial-command', '5.5', '5.5'),
-                     'driver_node': driver('watchdog_timeout:=0.0')},
+                     'driver_node': driver('watchdog_timeout:=0.0', ping=True)},
           DRIVER_OUT, commands_io, ('driver_node',)),
     Group('serial', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node'),
                      'driver_node': driver('watchdog_timeout:=0.0', streams=False)},

@@ -118,12 +118,13 @@ def lockstep_command(publisher, pressures, u1: float, u2: float, stamps: str = '
     """One ValveCommand to a lockstep sim_node, stamped for its current step t_k (the stamp of
     the last pressure sample), 0 ('zero') or for the step before (t_k - 1 ms, 'past'); True if
     the rig stepped (a newer sample arrived within `timeout`)."""
-    items = pressures.messages()
-    t_k = stamp_ns(items[-1].header.stamp) if items else 0
-    ns = {'current': t_k, 'zero': 0, 'past': t_k - STEP_NS}[stamps]
+    def last_stamp() -> int:
+        items = pressures.messages()
+        return stamp_ns(items[-1].header.stamp) if items else -1
+    t_k = last_stamp()
+    ns = {'current': max(t_k, 0), 'zero': 0, 'past': t_k - STEP_NS}[stamps]
     publisher.publish(command_message(u1, u2, ns))
-    return wait_until(lambda: stamp_ns(pressures.messages()[-1].header.stamp) > t_k, timeout,
-                      0.002)
+    return wait_until(lambda: last_stamp() > t_k, timeout, 0.002)
 
 
 # ---------------------------------------------------------------------------- parameters

@@ -135,7 +135,7 @@ class NodeSpec:
     package: str
     args: tuple = ()
     diag_name: str | None = None     # /diagnostics status name prefix; None: no diagnostics
-    ready: object = None             # callable(stack) -> bool, instead of or besides diagnostics
+    ready: object = None             # ready(stack, since) -> bool, besides its diagnostics
 
 
 @dataclass
@@ -244,7 +244,7 @@ class Stack:
         def ready():
             if spec.diag_name and self.status(spec.diag_name, since) is None:
                 return False
-            return spec.ready is None or spec.ready(self)
+            return spec.ready is None or spec.ready(self, since)
         end = time.monotonic() + STARTUP
         while time.monotonic() < end and proc.alive():
             if ready():
