@@ -122,6 +122,7 @@ class DriverNode(Node):
         self._inject_at = None               # monotonic time of the injected internal error
         self._device = None
         self._device_heartbeat = None
+        self._early_frames = []              # frames read with the HELLO_ACK, after it
         self._ticks = proto.TickCounter()    # the device's tick -> Pressures.sample
         self._vents = proto.BoardVents()
         self._logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
@@ -345,13 +346,16 @@ class DriverNode(Node):
             seq = self._next_seq()
         self._decoder.reset()
         self._rx_seq.reset()
+        self._early_frames = []
         self._write(proto.hello(seq))
         deadline = time.monotonic() + self.config['handshake_timeout']
         info = None
         while info is None and time.monotonic() < deadline and not self._stop.is_set():
-            for frame in self._decoder.feed(ser.read(max(ser.in_waiting, 1))):
+            frames = self._decoder.feed(ser.read(max(ser.in_waiting, 1)))
+            for i, frame in enumerate(frames):
                 if frame.type == proto.HELLO_ACK:
                     info = proto.parse_hello_ack(frame)
+                    self._early_frames = frames[i + 1:]   # already streamed: _stream's
                     break
         if info is None:
             with self._lock:
@@ -401,31 +405,32 @@ class DriverNode(Node):
         ser = self._serial
         last_sample = time.monotonic()
         next_heartbeat = last_sample
+        early, self._early_frames = self._early_frames, []
         while not self._stop.is_set():
             data = ser.read(max(ser.in_waiting, 1))
             now = time.monotonic()
             if self._inject_at is not None and now >= self._inject_at:
                 self._inject_at = math.inf   # once
                 raise InjectedError('injected by the inject_internal_error parameter')
-            if data:
-                for frame in self._decoder.feed(data):
-                    self._rx_seq.update(frame.seq)
-                    try:
-                        if frame.type == proto.SAMPLE:
-                            self._on_sample(proto.parse_sample(frame), now)
-                            last_sample = now
-                        elif frame.type == proto.DEVICE_HEARTBEAT:
-                            heartbeat = frame.fields()
-                            with self._lock:
-                                self._device_heartbeat = heartbeat
-                                self._vents.on_heartbeat(heartbeat[2])
-                        elif frame.type == proto.HELLO_ACK:
-                            pass
-                        else:
-                            frame.fields()  # raises for an unknown type
-                    except proto.ProtocolError:
+            frames, early = early + (self._decoder.feed(data) if data else []), []
+            for frame in frames:
+                self._rx_seq.update(frame.seq)
+                try:
+                    if frame.type == proto.SAMPLE:
+                        self._on_sample(proto.parse_sample(frame), now)
+                        last_sample = now
+                    elif frame.type == proto.DEVICE_HEARTBEAT:
+                        heartbeat = frame.fields()
                         with self._lock:
-                            self._protocol_errors += 1
+                            self._device_heartbeat = heartbeat
+                            self._vents.on_heartbeat(heartbeat[2])
+                    elif frame.type == proto.HELLO_ACK:
+                        pass
+                    else:
+                        frame.fields()  # raises for an unknown type
+                except proto.ProtocolError:
+                    with self._lock:
+                        self._protocol_errors += 1
             self._check_watchdog(now)
             if now >= next_heartbeat:
                 with self._io_lock:

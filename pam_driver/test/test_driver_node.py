@@ -212,13 +212,15 @@ def test_injected_faults_are_counted_and_survived(rig):
     values = r.wait_values(
         lambda v: int(v['crc errors']) > 0 and int(v['garbage bytes']) > 0
         and int(v['lost frames']) > 0, 5.0, 'CRC errors, garbage and lost frames on /diagnostics')
-    # unplug at 2.5 s, replug 1 s later: reconnect with backoff, samples resume
-    values = r.wait_values(lambda v: int(v['reconnects']) >= 1, 10.0, 'a reconnect')
+    # unplug at 2.5 s, replug 1 s later: reconnect with backoff, samples resume. Waits for the
+    # unplug itself: on a loaded machine an emulator stall once made an earlier reconnect
+    r.emulator.wait_for(lambda: r.device()['faults']['disconnect'] >= 1, 10.0, 'the unplug')
+    since = time.monotonic() + 1.0
+    r.driver.wait_for(lambda: len([t for t, _ in r.pressures.items() if t > since]) > 500, 10.0,
+                      'samples after the replug')
+    values = r.wait_values(lambda v: int(v['reconnects']) >= 1, 3.0, 'a reconnect')
     assert int(values['disconnects']) >= 1
     assert 'device lost' in values['safe reason'] and values['armed'] == 'false'
-    since = time.monotonic()
-    r.driver.wait_for(lambda: len([t for t, _ in r.pressures.items() if t > since]) > 500, 5.0,
-                      'samples after the replug')
     assert r.call('arm').success
     since = time.monotonic()
     r.send(8.0, 2.0, duration=0.05)
@@ -228,11 +230,14 @@ def test_injected_faults_are_counted_and_survived(rig):
     lost, crc = int(values['lost frames']), int(values['crc errors'])
     assert lost >= crc  # a corrupted frame is a lost one too
     # Pressures.sample counts the board's ticks: dropped and corrupted sample frames and the
-    # second the board was unplugged are gaps (samples nobody got), never a step back
+    # second the board was unplugged are gaps (samples nobody got), never a step back. The probe
+    # may have got its first sample only after the replug (discovery can take 3 s): the unplug's
+    # gap is read from the driver's own counts
     counters = [m.sample for m in r.pressures.messages()]
     steps = [b - a for a, b in zip(counters, counters[1:])]
     assert counters[0] >= 1 and min(steps) >= 1, 'the counter never repeats nor goes back'
-    assert max(steps) > 500, 'the unplugged second is a gap'
+    missed = int(values['last sample counter']) - int(values['samples received'])
+    assert missed > 500, ('the unplugged second is a gap', values)
     assert sum(1 for d in steps if d > 1) >= 3, 'dropped frames are gaps'
     assert r.driver.alive() and r.emulator.alive()
     assert all(math.isfinite(m.p1) and math.isfinite(m.p2) for m in r.pressures.messages())
@@ -309,8 +314,10 @@ def test_board_vents_reach_the_diagnostics(rig):
     """The board's own watchdog at 1 ms: it vents both valves between two host frames, and each
     COMMAND re-arms it. Every vent reaches /diagnostics: 'board vents' (the device's own count
     in the end), 'board vented N times' and ERROR while the driver is armed."""
+    # stream_timeout 1 s: a loaded machine's 200 ms stall (the default) lost the device once,
+    # and the driver, safe then, reported the vents as WARN
     r = rig(emulator_args=('--device-watchdog', '0.001'),
-            driver_params=('watchdog_timeout:=0.0',))
+            driver_params=('watchdog_timeout:=0.0', 'stream_timeout:=1.0'))
     since = time.monotonic()
     r.send(8.0, 2.0, duration=1.5, period=0.02)
     r.driver.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR and 'board vented' in s.message
