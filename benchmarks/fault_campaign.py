@@ -569,6 +569,35 @@ def bag_tools(ctx, bag: Path) -> dict:
     return runs
 
 
+def replay(source: str, topics: str):
+    """bag_play bags/<source> (these topics, rate 1) into the group's ukf_node; facts: the
+    recorded /pam/pressures count."""
+    def act(ctx):
+        from pam_driver.bags import bag_info
+        counts = {t['name']: t['count'] for t in bag_info(BAGS / source)['topics']}
+        ctx.tool('bag_play', 'pam_driver', '--ros-args', '-p', f'bag:={BAGS / source}',
+                 '-p', f'topics:={topics}')
+        return {'recorded': counts['/pam/pressures']}
+    return act
+
+
+def replay_estimated(ctx, facts):
+    """An estimate for every recorded pressure sample, or the loss reported."""
+    n, recorded = len(ctx.received('/pam/estimate')), facts['recorded']
+    reported = ctx.delta(UKF, 'samples lost')
+    play = ctx.tools[-1]
+    return Verdict(play.code == 0 and n + reported >= recorded,
+                   f"bag_play exit {play.code}; {n}/{recorded} samples estimated, {reported:g} "
+                   f"reported as 'samples lost'")
+
+
+def replay_loss(ctx, facts):
+    if 'recorded' not in facts:
+        return '-'
+    missing = facts['recorded'] - len(ctx.received('/pam/estimate'))
+    return max(missing - int(ctx.delta(UKF, 'samples lost')), 0)
+
+
 def damaged_bag(source: str, *damages):
     """A copy of bags/<source> with each damage(bag) applied, through every bag tool."""
     def act(ctx):
@@ -880,6 +909,10 @@ GROUPS = {g.name: g for g in [
                      'bag_record': NodeSpec('bag_record', 'pam_driver',
                                             ros('output:=recorded'))},
           RIG_OUT, None, ('sim_node',)),
+    Group('replay', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node',
+                                          answered_ping(ukf_ping, received_since(
+                                              '/pam/estimate')))},
+          [(M['JointEstimate'], '/pam/estimate')], ukf_io, ('ukf_node',), replay_loss),
     Group('bags'),
     Group('params_files'),
     Group('startup'),
@@ -1142,7 +1175,16 @@ CASES = [
          'pam-bag-recover rebuilds the bag (exit 0), pam-bag-info reads it',
          kill_recorder, tools_answer({'recover': 0, 'info (recovered)': 0})),
 
-    # --- damaged copies of the reference bags through every bag tool -----------------------
+    # --- bags: a reference bag replayed into a live node; damaged copies through every tool -
+    Case('bag.replay', 'replay', 'bag_play bags/closed_mild_angle (/pam/pressures, '
+         '/pam/valve_command, 12 s) into ukf_node', 'an estimate per recorded sample, or the '
+         'loss reported', replay('closed_mild_angle', '/pam/pressures,/pam/valve_command'),
+         replay_estimated),
+    Case('bag.intact', 'bags', 'closed_mild_angle as shipped (the baseline)', 'info, play, '
+         'evaluate: exit 0; identify: exit 2 (not calibration runs); recover: exit 2 (needs '
+         'no recovery)', damaged_bag('closed_mild_angle'),
+         tools_answer({'info': 0, 'play': 0, 'evaluate': 0, 'identify': 2, 'recover': 2,
+                       'info (recovered)': 0})),
     Case('bag.chunk_flipped', 'bags', 'closed_mild_angle, 16 bytes flipped in a chunk '
          '(zstd fails)', 'info, play, evaluate, identify: exit 2 naming the file; recover: '
          'exit 0, then info reads it', damaged_bag('closed_mild_angle', flip_in_chunk),
