@@ -84,7 +84,10 @@ record_validation() {  # free | locked
   NAME="validation_mild_$1"
   record "$TOPICS" max_bag_size:="$MAX_FILE"
   rig "$1"
-  sleep 2   # let bag_record discover the topics before the profile starts
+  # bag_record subscribes to the rig's two topics before the profile starts (DDS matches each
+  # pair of processes on its own, up to one 3 s announcement period late: README)
+  wait_log "$LOGDIR/$NAME.record.log" 'subscribed to' 2
+  sleep 1
   profile_player --ros-args -p duration:="$DURATION" -p joint_mode:="$1" \
     -p wait_for_estimator:=30.0 2>&1 | tee "$LOGDIR/$NAME.player.log" | tail -n 25
   finish
