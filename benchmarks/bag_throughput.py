@@ -95,10 +95,9 @@ def recorded_gaps(bag) -> dict:
     contents, store = load_bag(bag), make_typestore()
     gaps = {name: SampleGaps() for name in contents.topic_names
             if contents.topics[name].endswith(('/Pressures', '/JointEstimate'))}
-    for i, data in zip(contents.topic_index, contents.data):
-        name = contents.topic_names[i]
-        if name in gaps:
-            gaps[name].update(store.deserialize_cdr(data, contents.topics[name]).sample)
+    for name, found in gaps.items():
+        for _, msg in contents.deserialized(name, store):
+            found.update(msg.sample)
     return {name: loss_summary(g.values()) for name, g in sorted(gaps.items())}
 
 

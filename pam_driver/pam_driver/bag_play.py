@@ -12,9 +12,11 @@ message to send, so after a stall /clock does not run past unsent data).
 At the end it waits (at most `wait_for_all_acked`) for reliable subscribers to acknowledge every
 message: a sample not acknowledged when the writer's process exits is lost.
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
-package) is one error line naming the file and the problem, exit code 2, before anything is
-published; a damaged chunk inside an otherwise complete file (its CRC does not match, or it does
-not decompress) is found when playback reaches it: the messages before it are played, then an
+package, a topic recorded with another definition of its type than the installed one: its
+channel's RIHS01 topic_type_hash, or the hash of its embedded definition, differs from the
+installed type's, so no subscriber could read it) is one error line naming the file and the
+problem, exit code 2, before anything is published; a damaged chunk inside an otherwise
+complete file (its CRC does not match, or it does not decompress) is found when playback reaches it: the messages before it are played, then an
 error naming the file and the chunk, exit code 2 too (README, Exit codes).
 """
 
@@ -108,6 +110,11 @@ class BagPlayer(Node):
             qos = self._qos(self.bag.qos.get(name, []))
             self.publishers_by_index.append(
                 self.create_publisher(cls, remap.get(name, name), qos))
+        if self.bag.unchecked:
+            self.get_logger().warn(
+                f'{", ".join(self.bag.unchecked)}: the bag gives no type hash or readable '
+                'definition (or the type is not in the typestore): not checked against the '
+                'installed types; a subscriber receives nothing if they differ')
         self.clock_pub = None
         if values['clock'] > 0.0:
             from rosgraph_msgs.msg import Clock

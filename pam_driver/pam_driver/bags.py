@@ -87,6 +87,18 @@ def known_type(store, msgtype: str) -> bool:
     return msgtype in store.fielddefs
 
 
+def definition_hash(msgtype: str, definition: str) -> str:
+    """The RIHS01 hash of `msgtype` as the ros2msg `definition` defines it (with the types it
+    uses after it, as a bag's schema embeds them); '' if the text cannot be parsed."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    try:
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(definition, msgtype))
+        return store.hash_rihs01(msgtype)
+    except Exception:  # noqa: BLE001 - an incomplete or damaged definition: not checkable
+        return ''
+
+
 # ------------------------------------------------------------------------------- QoS
 def make_qos(reliable: bool = True, depth: int = 100, transient_local: bool = False,
              keep_all: bool = False):
@@ -472,10 +484,14 @@ class BagWriter:
         return self.path / self._storage.file_name
 
     @_locked
-    def add_topic(self, topic: str, msgtype: str, qos_profiles=()) -> None:
+    def add_topic(self, topic: str, msgtype: str, qos_profiles=(), definition=None) -> None:
+        """A topic of `msgtype`, defined as the typestore defines it, or as `definition`
+        (ros2msg text, RIHS01 hash) if given: the definition a recorded bag holds."""
         if not known_type(self.typestore, msgtype):
             raise BagError(f'unknown message type {msgtype!r} of topic {topic}')
+        msgdef, rihs01 = definition or (None, None)
         conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore,
+                                           msgdef=msgdef, rihs01=rihs01,
                                            offered_qos_profiles=list(qos_profiles))
         self.topics[topic] = _Topic(topic, msgtype, conn)
 
@@ -699,6 +715,7 @@ class BagSelection:
     first_ns: int               # start_ns + start_offset: where reading starts
     message_count: int          # of the selected topics in the whole bag
     files: list                 # the .mcap files, in order
+    unchecked: list = field(default_factory=list)   # topics whose definition was not checked
 
     def messages(self):
         """Yield (receive time ns, topic index, CDR bytes) of the selected topics from
@@ -736,9 +753,63 @@ def bag_files(path) -> list[Path]:
     return [Path(path) / name for name in read_metadata(path)['relative_file_paths']]
 
 
-def open_bag(path, topics=None, start_offset: float = 0.0) -> BagSelection:
+def recorded_types(files) -> list[tuple[Path, str, str, str]]:
+    """(file, topic, type, RIHS01 hash) of every channel of the .mcap `files` (read from their
+    summaries): the channel's topic_type_hash, else the hash of the schema's embedded ros2msg
+    definition (a bag of a rosbag2 older than Jazzy has no hashes); '' if neither."""
+    from mcap.reader import make_reader
+    found = []
+    for path in files:
+        with Path(path).open('rb') as stream:
+            summary = make_reader(stream).get_summary()
+        for channel in summary.channels.values():
+            schema = summary.schemas.get(channel.schema_id)
+            found.append((Path(path), channel.topic, schema.name if schema else '',
+                          channel_hash(channel, schema)))
+    return found
+
+
+def channel_hash(channel, schema) -> str:
+    """The RIHS01 hash of an MCAP channel's type as recorded: the channel's topic_type_hash,
+    else the hash of its schema's ros2msg definition; '' if neither."""
+    rihs01 = channel.metadata.get('topic_type_hash', '')
+    if rihs01.startswith('RIHS01_'):
+        return rihs01
+    if schema is None or schema.encoding != 'ros2msg' or not schema.data.strip():
+        return ''      # rosbag2 writes an empty schema for a type it found no definition of
+    return definition_hash(schema.name, schema.data.decode(errors='replace'))
+
+
+def check_definitions(files, topics, store=None) -> list[str]:
+    """BagError naming the topic, its type and both hashes if one of `topics` was recorded
+    with another definition of its type than the installed one (`store`, make_typestore()'s
+    by default): its messages would not deserialize here, and a subscriber of the installed
+    type would receive none of them. Returns the topics that could not be checked (no hash and
+    no readable definition, or a type not installed)."""
+    store = make_typestore() if store is None else store
+    unchecked, wrong = set(), []
+    for path, topic, msgtype, rihs01 in recorded_types(files):
+        if topic not in topics:
+            continue
+        if not rihs01 or not known_type(store, msgtype):
+            unchecked.add(topic)
+        elif rihs01 != (installed := store.hash_rihs01(msgtype)):
+            wrong.append((path, topic, msgtype, rihs01, installed))
+    if wrong:
+        path, topic, msgtype, rihs01, installed = wrong[0]
+        others = sorted({w[1] for w in wrong} - {topic})
+        raise BagError(f'{path}: topic {topic} was recorded with a different definition of '
+                       f'{msgtype} (bag {rihs01}, installed {installed}): re-record or convert '
+                       'the bag' + (f' (so were {", ".join(others)})' if others else ''))
+    return sorted(unchecked)
+
+
+def open_bag(path, topics=None, start_offset: float = 0.0,
+             check_types: bool = True) -> BagSelection:
     """Check a bag (check_bag) and select `topics` (all if None) from start_offset (s) on;
-    BagError naming the file and the problem, or a topic the bag does not have."""
+    BagError naming the file and the problem, or a topic the bag does not have, or (with
+    `check_types`) a topic recorded with another definition of its type than the installed
+    one (check_definitions)."""
     from rosbags.rosbag2 import Reader
     path = check_bag(path)
     try:
@@ -753,13 +824,16 @@ def open_bag(path, topics=None, start_offset: float = 0.0) -> BagSelection:
             if missing:
                 raise BagError(f'{path}: no topic {", ".join(missing)} in the bag (it has: '
                                f'{", ".join(sorted(reader.topics))})')
-        return BagSelection(path, {c.topic: c.msgtype for c in conns},
-                            {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
-                            sorted({c.topic for c in conns}), reader.start_time, reader.end_time,
-                            reader.start_time + round(start_offset * 1e9),
-                            sum(c.msgcount for c in conns), bag_files(path))
+        selection = BagSelection(path, {c.topic: c.msgtype for c in conns},
+                                 {c.topic: list(c.ext.offered_qos_profiles) for c in conns},
+                                 sorted({c.topic for c in conns}), reader.start_time,
+                                 reader.end_time, reader.start_time + round(start_offset * 1e9),
+                                 sum(c.msgcount for c in conns), bag_files(path))
     finally:
         reader.close()
+    if check_types:
+        selection.unchecked = check_definitions(selection.files, selection.topics)
+    return selection
 
 
 @dataclass
@@ -776,10 +850,28 @@ class BagContents:
     start_ns: int = 0
     end_ns: int = 0
 
+    def deserialized(self, topic: str, store) -> list:
+        """[(receive time ns, message)] of `topic` (none if the bag has not got it), read with
+        the rosbags typestore `store`; BagError naming the message that cannot be read."""
+        if topic not in self.topics:
+            return []
+        index, msgtype, out = self.topic_names.index(topic), self.topics[topic], []
+        for t, i, data in zip(self.times, self.topic_index, self.data):
+            if i == index:
+                try:
+                    out.append((t, store.deserialize_cdr(data, msgtype)))
+                except Exception as exc:  # noqa: BLE001 - short, long or garbled CDR
+                    raise BagError(f'{self.path}: message {len(out) + 1} of {topic} is not a '
+                                   f'valid {msgtype} ({len(data)} bytes: {exc}); was it '
+                                   'recorded with another definition of the type?') from exc
+        return out
 
-def load_bag(path, topics=None, start_offset: float = 0.0) -> BagContents:
-    """Read a bag's messages (only `topics` if given) from start_offset (s) into memory."""
-    selection = open_bag(path, topics, start_offset)
+
+def load_bag(path, topics=None, start_offset: float = 0.0,
+             check_types: bool = True) -> BagContents:
+    """Read a bag's messages (only `topics` if given) from start_offset (s) into memory;
+    BagError as open_bag."""
+    selection = open_bag(path, topics, start_offset, check_types)
     contents = BagContents(selection.path, selection.topics, selection.qos, [], [],
                            selection.topic_names, [], selection.start_ns, selection.end_ns)
     for t, i, data in selection.messages():
@@ -944,7 +1036,7 @@ def _readable(path: Path) -> bool:
     try:
         if any(check.problems for check in verify_bag(path, first_only=True)):
             return False
-        for _ in open_bag(path).messages():
+        for _ in open_bag(path, check_types=False).messages():
             pass
     except BagError:
         return False
@@ -1062,9 +1154,11 @@ def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
                         if not known_type(writer.typestore, schema.name):
                             writer.typestore.register(get_types_from_msg(
                                 schema.data.decode(), schema.name))
-                        if record.topic not in writer.topics:
+                        if record.topic not in writer.topics:   # as recorded, not as now
+                            rihs01 = channel_hash(record, schema)
                             writer.add_topic(record.topic, schema.name, parse_qos(
-                                record.metadata.get('offered_qos_profiles', '')))
+                                record.metadata.get('offered_qos_profiles', '')),
+                                (schema.data.decode(), rihs01) if rihs01 else None)
                         topics[record.id] = record.topic
                     except Exception as exc:  # noqa: BLE001 - its messages count as lost
                         result.problems.append(f'topic {record.topic}: {exc}')

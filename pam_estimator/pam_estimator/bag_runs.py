@@ -55,30 +55,23 @@ def _stamp(msg) -> int:
 
 
 def _decode(contents, store, topic):
-    """[(stamp_ns, message)] of one topic, in receive order."""
-    if topic not in contents.topics:
-        return []
-    i = contents.topic_names.index(topic)
-    msgtype = contents.topics[topic]
-    out = []
-    for ti, data in zip(contents.topic_index, contents.data):
-        if ti == i:
-            msg = store.deserialize_cdr(data, msgtype)
-            out.append((_stamp(msg), msg))
-    return out
+    """[(stamp_ns, message)] of one topic, in receive order; BagError if one is unreadable."""
+    return [(_stamp(msg), msg) for _, msg in contents.deserialized(topic, store)]
 
 
 def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> BagRun:
     """The run recorded in a bag (see the module doc); BagError / ValueError if it cannot be."""
-    from pam_driver.bags import BagError, load_bag, make_typestore
+    from pam_driver.bags import (BagError, bag_files, check_definitions, load_bag,
+                                 make_typestore)
     topics = [t.replace('/pam', namespace, 1) for t in (PRESSURES, COMMAND, MEASURED)]
-    contents = load_bag(path)
+    contents = load_bag(path, check_types=False)
     for topic in (topics[0], topics[2]):
         if topic not in contents.topics:
             raise BagError(f'{contents.path}: no {topic} in the bag (it has: '
                            f'{", ".join(sorted(contents.topics)) or "nothing"}); a run needs '
                            f'{", ".join(topics)}')
     store = make_typestore()
+    check_definitions(bag_files(contents.path), topics, store)   # only the topics read
     pressures = _decode(contents, store, topics[0])
     commands = _decode(contents, store, topics[1])
     measured = _decode(contents, store, topics[2])
