@@ -32,11 +32,13 @@ def set_stamp(header, ns: int) -> None:
 class Feed:
     """Numbered, stamped messages published like a rig (sample counter 1, 2, ... as
     Pressures.sample) or an estimator (JointEstimate.sample). `make(value)` builds the message
-    of one value; the feed sets its stamp and sample counter."""
+    of one value; the feed sets its stamp and sample counter (0, "not counted", if not
+    `counted`)."""
 
-    def __init__(self, publisher, make):
+    def __init__(self, publisher, make, counted: bool = True):
         self.publisher = publisher
         self.make = make
+        self.counted = counted
         self.sample = 0
         self.clock_ns = time.time_ns()
         self.sent: list[tuple[int, int]] = []    # (sample, stamp ns) of everything published
@@ -59,7 +61,7 @@ class Feed:
         for i, value in enumerate(values):
             msg = self.make(value)
             self.sample += 1
-            msg.sample = self.sample
+            msg.sample = self.sample if self.counted else 0
             ns = self._stamp(stamps, i, base_ns)
             set_stamp(msg.header, ns)
             self.publisher.publish(msg)
