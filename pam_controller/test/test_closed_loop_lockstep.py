@@ -6,7 +6,7 @@ acceptance targets on the TRUE angle / torque: steady-state error <= 3.0 % (angl
 import pytest
 
 from pam_controller.lockstep_run import run_lockstep_steps
-from pam_driver.testing import domain_id_for
+from pam_driver.testing import claim_domain
 
 CASES = {'angle': ([0.0, 0.25, -0.15], 3.0), 'torque': ([0.0, 1.5, -1.0], 3.5)}
 
@@ -14,8 +14,10 @@ CASES = {'angle': ([0.0, 0.25, -0.15], 3.0), 'torque': ([0.0, 1.5, -1.0], 3.5)}
 @pytest.mark.parametrize('mode', sorted(CASES))
 def test_lockstep_closed_loop_meets_the_targets(mode):
     levels, target = CASES[mode]
-    report, t, reference, truth = run_lockstep_steps(
-        mode, levels, hold=8.0, domain_id=domain_id_for(f'lockstep_{mode}'), timeout=240.0)
+    domain, lock = claim_domain(f'lockstep_{mode}')
+    with lock:
+        report, t, reference, truth = run_lockstep_steps(
+            mode, levels, hold=8.0, domain_id=domain, timeout=240.0)
     assert len(report.steps) == 3 and t[-1] >= 24.0
     assert report.worst_error <= target, '\n'.join(report.lines())
     assert report.worst_settling <= 3.0, '\n'.join(report.lines())

@@ -140,14 +140,38 @@ class NodeProcess:
         self._err.close()
 
 
+DOMAIN_LOCKS = Path(tempfile.gettempdir())   # pam_ros_domain_<id>.lock: one holder per domain
+
+
+def claim_domain(module_name: str):
+    """(domain, lock file): the first ROS_DOMAIN_ID from domain_id_for(module_name) on, in
+    1..101, that no other test process of this machine holds (an exclusive flock, released when
+    the file is closed or the process ends). Two test runs at once (two checkouts, a developer's
+    run beside CI's) otherwise shared a domain now and then: a probe received another run's
+    messages (seen: pi_node counting 19620 commands in a test that sent 170 estimates)."""
+    import fcntl
+    first = domain_id_for(module_name)
+    for k in range(101):
+        domain = (first - 1 + k) % 101 + 1
+        lock = open(DOMAIN_LOCKS / f'pam_ros_domain_{domain}.lock', 'w')   # noqa: SIM115
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return domain, lock
+        except BlockingIOError:
+            lock.close()
+    pytest.fail('every ROS domain in 1..101 is held by another test process of this machine')
+
+
 @pytest.fixture(scope='module')
 def ros_domain(request) -> int:
-    """This module's ROS_DOMAIN_ID; also exported to this process's environment."""
-    domain = domain_id_for(request.module.__name__)
+    """This module's ROS_DOMAIN_ID, held for the module (claim_domain); also exported to this
+    process's environment."""
+    domain, lock = claim_domain(request.module.__name__)
     os.environ['ROS_DOMAIN_ID'] = str(domain)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
-    return domain
+    yield domain
+    lock.close()
 
 
 @pytest.fixture
