@@ -23,7 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pam_driver.executables import find_executable
-from pam_driver.testing import Collector, NodeProcess, Probe, child_env, wait_until
+from pam_driver.testing import (DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env,
+                                wait_until)
 
 STARTUP = 60.0        # s: a fresh node's first /diagnostics on a loaded 2-core machine
 DIAG_WAIT = 4.0       # s: a fresh /diagnostics status (nodes publish about 1 Hz)
@@ -31,12 +32,27 @@ TOOL_TIMEOUT = 120.0  # s: one command-line tool run
 
 
 def campaign_domain() -> int:
-    """A ROS_DOMAIN_ID of the campaign, apart from the tests' 1..101 and the benchmarks'
-    110..199; exported to this process (rclpy.init and child_env read it)."""
-    domain = os.getpid() % 30 + 200
-    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    os.environ.pop('ROS_LOCALHOST_ONLY', None)
-    return domain
+    """A ROS_DOMAIN_ID of the campaign in 200..229, apart from the tests' 1..101 and the
+    benchmarks' 110..199, held by an exclusive flock for this process's life the way the tests
+    hold theirs (pam_driver.testing.DOMAIN_LOCKS: two runs at once never share a domain);
+    exported to this process (rclpy.init and child_env read it)."""
+    import fcntl
+    for k in range(30):
+        domain = 200 + (os.getpid() + k) % 30
+        lock = open(DOMAIN_LOCKS / f'pam_ros_domain_{domain}.lock', 'w')   # noqa: SIM115
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            continue
+        _HELD.append(lock)
+        os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+        os.environ.pop('ROS_LOCALHOST_ONLY', None)
+        return domain
+    raise SystemExit('every ROS domain in 200..229 is held by another process of this machine')
+
+
+_HELD: list = []     # the lock file of the domain held
 
 
 def executable(name: str, package: str) -> str:
