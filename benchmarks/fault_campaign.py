@@ -41,35 +41,35 @@ import signal
 import sys
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import Callable
 
 import rclpy
 from rclpy.context import Context
 
-from fault_inputs import (HUGE, INF, NAN, Feed, Parameters, command_message,
-                          copy_bag, estimate_message, flip_in_chunk, flip_unnoticed,
-                          lockstep_command, pressures_message, remove_metadata,
-                          remove_split_file, truncate, unanswered)
-from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, maps_holds, new_folder, number,
-                         run_tool, traceback_count)
+from fault_actions import (READERS, arm_driver, board, commanding, commands_to, damaged_bag,
+                           driver_commands, feed_values, in_turn, kill, kill_board,
+                           kill_recorder, lockstep, lockstep_decreasing, loop_running, observe,
+                           params_file_to_all, reference, replay, set_parameters,
+                           start_with_bad_value, stopped_while_importing,
+                           unknown_name_in_every_node, wait_diag)
+from fault_checks import (Verdict, accepted, alive, all_of, applied, bad_value_refused,
+                          commands_of, diag_is, estimates_of, every_answer, level_at_least,
+                          params_file_refused, quiet_exits, refused, replay_counts,
+                          replay_estimated, rises, safe_within, status_seen, stepped,
+                          streams_on, tools_answer, unknown_name_warned)
+from fault_inputs import (HUGE, INF, NAN, Feed, command_message, estimate_message,
+                          flip_in_chunk, flip_unnoticed, lockstep_command, pressures_message,
+                          remove_metadata, remove_split_file, truncate)
+from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, new_folder, number, run_tool,
+                         traceback_count)
 from pam_driver.sample_gaps import SampleGaps
-from pam_driver.testing import (MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env,
-                                malformed_params_file, stamp_ns, wait_until)
+from pam_driver.testing import MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env
 
-ROOT = Path(__file__).resolve().parents[1]
-BAGS = ROOT / 'bags'
 SETTLE = 0.3          # s after a case's inputs before the /diagnostics it is judged on
 SAFE_SLACK = 0.5      # s allowed on top of a watchdog's time on a loaded machine
 VERBOSE = False       # --verbose
-
-
-@dataclass
-class Verdict:
-    ok: bool
-    observed: str
 
 
 @dataclass
@@ -129,6 +129,11 @@ class Ctx:
             self._after[node] = self.stack.fresh_values(node, self.t_acted + SETTLE)
         return self._after[node]
 
+    def after_status(self, node: str):
+        """The DiagnosticStatus of `node` after() reads its values from (None if none came)."""
+        self.after(node)
+        return self.stack.status(node, self.t_acted + SETTLE)
+
     def delta(self, node: str, key: str) -> float:
         return number(self.after(node), key) - number(self.before.get(node, {}), key, 0.0)
 
@@ -139,592 +144,6 @@ class Ctx:
         result = run_tool(exe, package, args, self.env, self.folder)
         self.tools.append(result)
         return result
-
-
-# ============================================================================ checks
-def all_of(*checks):
-    def check(ctx, facts):
-        verdicts = [c(ctx, facts) for c in checks]
-        return Verdict(all(v.ok for v in verdicts), '; '.join(v.observed for v in verdicts))
-    return check
-
-
-def rises(node: str, key: str, at_least: float, at_most: float = math.inf):
-    """A /diagnostics counter of `node` went up by at_least .. at_most during the case."""
-    def check(ctx, facts):
-        d = ctx.delta(node, key)
-        return Verdict(at_least <= d <= at_most, f"'{key}' +{d:g}")
-    return check
-
-
-def diag_is(node: str, key: str, predicate):
-    """predicate(value) of a /diagnostics value of `node` after the case."""
-    def check(ctx, facts):
-        value = ctx.after(node).get(key, '(missing)')
-        return Verdict(bool(predicate(value)), f"'{key}' {value}")
-    return check
-
-
-def level_at_least(node: str, level: int):
-    def check(ctx, facts):
-        ctx.after(node)
-        s = ctx.stack.status(node, ctx.t_acted + SETTLE)
-        got = s.level[0] if s else -1
-        names = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE', -1: 'none'}
-        return Verdict(got >= level, f'{node} {names[got]}: {s.message if s else ""}'[:140])
-    return check
-
-
-def estimates_of(ctx, sent) -> list:
-    """The pressure samples sent that have no estimate (matched by counter)."""
-    got = {m.sample for m in ctx.received('/pam/estimate')}
-    return [s for s, _ in sent if s not in got]
-
-
-def commands_of(ctx, sent) -> list:
-    """The estimates sent that have no valve command (matched by stamp)."""
-    return unanswered(sent, [stamp_ns(m.header.stamp)
-                             for m in ctx.received('/pam/valve_command')])
-
-
-def every_answer(node: str, missing_of, what: str):
-    """Every message sent was answered (missing_of(ctx, sent) empty, waiting up to 3 s for the
-    last), or `node` reported the missing ones lost ('samples lost' on /diagnostics)."""
-    def check(ctx, facts):
-        sent = facts['sent']
-        wait_until(lambda: not missing_of(ctx, sent), 3.0, 0.05)
-        missing = missing_of(ctx, sent)
-        text = f'{len(sent) - len(missing)}/{len(sent)} {what}'
-        if not missing:
-            return Verdict(True, text)
-        reported = ctx.delta(node, 'samples lost')
-        return Verdict(reported >= len(missing),
-                       f"{text} (counters {missing[0]}..{missing[-1]} missing), {reported:g} "
-                       f"reported as 'samples lost'")
-    return check
-
-
-def streams_on(at_least: int):
-    """At least `at_least` pressure samples reached the probe during the case."""
-    def check(ctx, facts):
-        n = len(ctx.received('/pam/pressures'))
-        return Verdict(n >= at_least, f'{n} samples received')
-    return check
-
-
-def stepped(n: int):
-    """A lockstep sim_node stepped for n of the commands."""
-    def check(ctx, facts):
-        k = facts['stepped']
-        return Verdict(k == n, f'stepped {k}/{len(facts["results"])}')
-    return check
-
-
-def applied(u1: float, u2: float):
-    """driver_node's last ~/applied_command is (u1, u2)."""
-    def check(ctx, facts):
-        items = ctx.stack.topics['/pam/driver_node/applied_command'].messages()
-        last = (items[-1].u1, items[-1].u2) if items else None
-        return Verdict(last == (u1, u2), f'applied {last}')
-    return check
-
-
-def refused(ctx, facts):
-    """Every parameter change in facts['results'] was refused with a reason, and the value read
-    back afterwards is the one before."""
-    results = facts['results']
-    bad = [f'{r.name}={r.value!r}: {"accepted" if r.ok else "no reason"}' for r in results
-           if r.ok or not r.reason]
-    changed = [f'{r.name} {r.before!r} -> {r.after!r}' for r in results
-               if r.before != r.after and not (_is_nan(r.before) and _is_nan(r.after))]
-    total = len(results)
-    text = f'{total - len(bad)}/{total} refused with a reason, values unchanged'
-    if bad or changed:
-        text = f'{total - len(bad)}/{total} refused; ' + '; '.join(bad + changed)
-    return Verdict(not bad and not changed, text)
-
-
-def accepted(ctx, facts):
-    """Every parameter change in facts['results'] was accepted and reads back."""
-    results = facts['results']
-    good = [r.ok and r.after == r.value for r in results]
-    return Verdict(all(good), ', '.join(
-        f'{r.name}={r.value!r} ' + ('set' if g else f'NOT set ({r.reason}) -> {r.after!r}')
-        for r, g in zip(results, good)))
-
-
-def _is_nan(value) -> bool:
-    return isinstance(value, float) and math.isnan(value)
-
-
-def safe_within(topic: str, safe: tuple, limit: float, what: str):
-    """After the kill, the first message on `topic` equal to `safe` arrives within `limit` s."""
-    def check(ctx, facts):
-        t_kill = facts['killed_at']
-        hits = [t for t, m in ctx.stack.topics[topic].items()
-                if t >= t_kill and (m.u1, m.u2) == safe]
-        if not hits:
-            return Verdict(False, f'{what}: no {safe} on {topic} after the kill')
-        dt = hits[0] - t_kill
-        return Verdict(dt <= limit, f'{what} {safe} {dt * 1e3:.0f} ms after the kill '
-                                    f'(limit {limit * 1e3:.0f} ms)')
-    return check
-
-
-def status_seen(node: str, level: int, text: str):
-    """A status of `node` at `level` or worse whose message holds `text` came during the case."""
-    def check(ctx, facts):
-        seen = [s for t, a in ctx.stack.topics['/diagnostics'].items() if t >= ctx.t0
-                for s in a.status if s.name.startswith(node) and s.level[0] >= level
-                and text in s.message]
-        return Verdict(bool(seen), f"{len(seen)} statuses with '{text}'" if seen else
-                       f"no status with '{text}'")
-    return check
-
-
-def alive(*names):
-    def check(ctx, facts):
-        dead = [n for n in names if not ctx.stack.procs[n].alive()]
-        return Verdict(not dead, 'dead: ' + ', '.join(dead) if dead else
-                       ', '.join(names) + ' alive')
-    return check
-
-
-def tools_answer(expected: dict, naming: bool = True):
-    """Each tool run of the case exited with its expected code (and, if `naming`, named the bag
-    on stderr when it failed); expected: label -> code."""
-    def check(ctx, facts):
-        parts, ok = [], True
-        for label, code in expected.items():
-            run = facts['runs'].get(label)
-            if run is None:
-                parts.append(f'{label} not run')
-                ok = False
-                continue
-            named = (not naming or run.code == 0
-                     or any(facts['bag_name'] in line for line in run.lines()))
-            good = run.code == code and named
-            ok &= good
-            shown = 'hung' if run.code is None else run.code
-            parts.append(f'{label} {shown}' + ('' if named else ' (error does not name the bag)'))
-        return Verdict(ok, ', '.join(parts))
-    return check
-
-
-def params_file_refused(ctx, facts):
-    """Every executable exited with code 2 and one stderr line naming the file (and line)."""
-    path, line = facts['path'], facts['line']
-    bad = []
-    for exe, run in facts['runs'].items():
-        lines = run.lines()
-        one = (len(lines) == 1 and f'params file {path}: ' in lines[0]
-               and (line is None or lines[0].endswith(f'(line {line})')))
-        if run.code != 2 or not one:
-            bad.append(f'{exe}: exit {run.code}, {len(lines)} lines: '
-                       f'{(lines or [""])[0][:100]}')
-    n = len(facts['runs'])
-    return Verdict(not bad, f'{n - len(bad)}/{n} exit 2 with one line' +
-                   ('; ' + '; '.join(bad) if bad else ''))
-
-
-def unknown_name_warned(ctx, facts):
-    missing = [exe for exe, seen in facts['warned'].items() if not seen]
-    n = len(facts['warned'])
-    return Verdict(not missing, f'{n - len(missing)}/{n} warned' +
-                   (': missing ' + ', '.join(missing) if missing else ''))
-
-
-# ============================================================================ actions
-def feed_values(feed: str, values, stamps='forward', period=0.001, before=None):
-    """Publish `before(ctx)` first (if given), then one message of `feed` per value, then a
-    closing good one."""
-    def act(ctx):
-        if before is not None:
-            before(ctx)
-            time.sleep(0.05)
-        f: Feed = ctx.io[feed]
-        sent = f.send(values, stamps, period) + f.close()
-        return {'sent': sent}
-    return act
-
-
-def commands_to(topic_key: str, commands):
-    """Publish the valve commands (u1, u2) on the publisher io[topic_key]."""
-    def send(ctx):
-        for u1, u2 in commands:
-            ctx.io[topic_key].publish(command_message(u1, u2))
-            time.sleep(0.002)
-    return send
-
-
-def reference(mode: int, value: float):
-    def send(ctx):
-        from pam_interfaces.msg import Reference
-        ctx.io['reference'].publish(Reference(mode=mode, value=float(value)))
-    return send
-
-
-def lockstep(commands, stamps='current'):
-    """Commands to a lockstep sim_node, each waiting for the step it makes (or 0.2 s)."""
-    def act(ctx):
-        results = [lockstep_command(ctx.io['commands'], ctx.stack.topics['/pam/pressures'],
-                                    u1, u2, stamps, timeout=1.0 if stamps != 'past' else 0.2)
-                   for u1, u2 in commands]
-        lockstep_command(ctx.io['commands'], ctx.stack.topics['/pam/pressures'], 5.5, 5.5)
-        return {'results': results, 'stepped': sum(results)}
-    return act
-
-
-def lockstep_decreasing(n: int):
-    """A command for the current step, then n stamped 1 ms, 2 ms, ... before it."""
-    def act(ctx):
-        pressures = ctx.stack.topics['/pam/pressures']
-        t_k = stamp_ns(pressures.messages()[-1].header.stamp)
-        results = [lockstep_command(ctx.io['commands'], pressures, 5.5, 5.5)]
-        for i in range(1, n + 1):
-            ctx.io['commands'].publish(command_message(5.5, 5.5, t_k - i * 1_000_000))
-            time.sleep(0.01)
-            results.append(False)
-        lockstep_command(ctx.io['commands'], pressures, 5.5, 5.5)
-        return {'results': results, 'stepped': int(results[0])}
-    return act
-
-
-def driver_commands(commands, stamps='now'):
-    """Valve commands to driver_node, stamped now, 0, 10 s back or 1, 2, ... s back."""
-    def act(ctx):
-        for i, (u1, u2) in enumerate(commands):
-            ns = {'now': None, 'zero': 0, 'past': time.time_ns() - 10_000_000_000,
-                  'decreasing': time.time_ns() - (i + 1) * 1_000_000_000}[stamps]
-            ctx.io['commands'].publish(command_message(u1, u2, ns))
-            time.sleep(0.005)
-        time.sleep(0.2)
-        return {}
-    return act
-
-
-def in_turn(*acts):
-    def act(ctx):
-        facts = {}
-        for a in acts:
-            facts.update(a(ctx) or {})
-        return facts
-    return act
-
-
-class ParamChange(NamedTuple):
-    """One run-time parameter change and its answer."""
-
-    name: str
-    value: object
-    ok: bool
-    reason: str
-    before: object       # the value read back before the change
-    after: object        # and after it
-
-
-def set_parameters(node: str, changes, then=None):
-    """Set each (name, value) alone through node's SetParameters service (ParamChange each),
-    then `then(ctx)` if given."""
-    def act(ctx):
-        client = Parameters(ctx.stack.probe, f'/pam/{node}')
-        results = []
-        for name, value in changes:
-            before = client.get(name)
-            ok, reason = client.set(name, value)
-            results.append(ParamChange(name, value, ok, reason, before, client.get(name)))
-        facts = {'results': results}
-        if then is not None:
-            facts.update(then(ctx))
-        return facts
-    return act
-
-
-def kill(name: str, then_wait: float = 1.5, before=None):
-    def act(ctx):
-        if before is not None:
-            before(ctx)
-        t = ctx.stack.kill(name)
-        time.sleep(then_wait)
-        return {'killed_at': t}
-    return act
-
-
-def trigger(ctx, service: str):
-    """Call a std_srvs/Trigger service; its response (None if no answer within 5 s)."""
-    from std_srvs.srv import Trigger
-    client = ctx.stack.probe.client(Trigger, service)
-    if not client.wait_for_service(timeout_sec=5.0):
-        return None
-    future = client.call_async(Trigger.Request())
-    return future.result() if wait_until(future.done, 5.0) else None
-
-
-def arm_driver(ctx) -> None:
-    """Make sure driver_node applies the controller's commands (call ~/arm if it latched safe
-    during start-up) and they flow for 1 s."""
-    applied = ctx.stack.topics['/pam/driver_node/applied_command']
-
-    def applying():
-        return applied.messages() and applied.messages()[-1].u1 != 0.0
-    if not wait_until(applying, 3.0):
-        trigger(ctx, '/pam/driver_node/arm')
-        wait_until(applying, 5.0)
-    time.sleep(1.0)
-
-
-def board(args, then, ready=None):
-    """A pam-emulator with `args` on the group's link (driver_node's port) for this case. The
-    case is judged from before it starts (the new stream's gaps all fall in the case); when
-    `ready(ctx)` (default: samples flow), driver_node is armed (it latched safe when the last
-    board went), then `then`; the board is stopped at the end, unless the case killed it, and
-    the stream's end given time to reach ukf_node."""
-    def act(ctx):
-        ctx.rebase()
-        link = ctx.run.folder / 'pam_daq'
-        emulator = NodeProcess('pam-emulator', 'pam_driver', ['--link', str(link), *args],
-                               ctx.env, cwd=ctx.folder)
-        ctx.procs.append(emulator)
-        up = ready or (lambda c: len(c.received('/pam/pressures')) > 100)
-        if not wait_until(lambda: up(ctx) or not emulator.alive(), 20.0, 0.05):
-            raise RuntimeError(f'the board did not come up: {emulator.stderr[-300:]}')
-        trigger(ctx, '/pam/driver_node/arm')
-        facts = then(ctx)
-        if id(emulator) not in ctx.killed:
-            emulator.stop()
-            time.sleep(0.5)
-        return facts
-    return act
-
-
-def commanding(seconds: float, period: float, u=(5.5, 5.5)):
-    """Valve commands every `period` s for `seconds` s."""
-    def act(ctx):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            ctx.io['commands'].publish(command_message(*u))
-            time.sleep(period)
-        return {}
-    return act
-
-
-def kill_board(then_wait: float):
-    def act(ctx):
-        emulator = ctx.procs[-1]
-        ctx.killed.add(id(emulator))
-        emulator.proc.kill()
-        time.sleep(then_wait)
-        return {}
-    return act
-
-
-def loop_running(ctx) -> None:
-    """Wait (at most 30 s) until the closed loop runs: pi_node answered 500 estimates since the
-    case began and its last command is fresh."""
-    commands = ctx.stack.topics['/pam/valve_command']
-    wait_until(lambda: len(commands.since(ctx.t0)) > 500 and
-               commands.items()[-1][0] > time.monotonic() - 0.1, 30.0, 0.05)
-
-
-def observe(seconds: float):
-    def act(ctx):
-        time.sleep(seconds)
-        return {}
-    return act
-
-
-def wait_diag(node: str, predicate, timeout: float):
-    """Wait (at most timeout s) for a /diagnostics status of node whose values satisfy
-    predicate(values, values before the case)."""
-    def act(ctx):
-        wait_until(lambda: predicate(ctx.stack.values(node, ctx.t0), ctx.before.get(node, {})),
-                   timeout, 0.1)
-        return {}
-    return act
-
-
-def kill_recorder(ctx):
-    """SIGKILL bag_record after 3 s of recording, then pam-bag-recover and pam-bag-info."""
-    time.sleep(3.0)
-    ctx.stack.kill('bag_record')
-    bag = ctx.run.folder / 'recorded'
-    runs = {'recover': ctx.tool('pam-bag-recover', 'pam_driver', bag)}
-    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
-    return {'runs': runs, 'bag_name': 'recorded'}
-
-
-# --- bags
-READERS = ('info', 'play', 'evaluate', 'identify')
-
-
-def bag_tools(ctx, bag: Path) -> dict:
-    """Every bag tool on `bag`: pam-bag-info, bag_play, pam-evaluate, pam-identify; then
-    pam-bag-recover and pam-bag-info on what it rebuilt."""
-    runs = {'info': ctx.tool('pam-bag-info', 'pam_driver', bag),
-            'play': ctx.tool('bag_play', 'pam_driver', '--ros-args', '-p', f'bag:={bag}',
-                             '-p', 'rate:=50.0', '-p', 'delay:=0.0'),
-            'evaluate': ctx.tool('pam-evaluate', 'pam_estimator', bag),
-            'identify': ctx.tool('pam-identify', 'pam_estimator', bag, '-o',
-                                 ctx.folder / 'identified')}
-    runs['recover'] = ctx.tool('pam-bag-recover', 'pam_driver', bag)
-    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
-    return runs
-
-
-def replay(source: str, topics: str):
-    """bag_play bags/<source> (these topics, rate 1) into the group's ukf_node; facts: the
-    recorded /pam/pressures and the gaps already in their sample counter."""
-    def act(ctx):
-        from pam_driver.bags import load_bag, make_typestore
-        contents, gaps = load_bag(BAGS / source, ['/pam/pressures']), SampleGaps()
-        counters = [msg.sample for _, msg in contents.deserialized('/pam/pressures',
-                                                                   make_typestore())]
-        for sample in counters:
-            gaps.update(sample)
-        ctx.tool('bag_play', 'pam_driver', '--ros-args', '-p', f'bag:={BAGS / source}',
-                 '-p', f'topics:={topics}')
-        return {'recorded': gaps.received + gaps.uncounted, 'in_bag': gaps.lost,
-                'counters': (counters[0], counters[-1])}
-    return act
-
-
-def replay_counts(ctx, facts) -> tuple[int, int]:
-    """(recorded samples not estimated, of them the ones ukf_node reports lost on the way: its
-    'samples lost' less the gaps already in the bag)."""
-    missing = facts['recorded'] - len(ctx.received('/pam/estimate'))
-    return missing, int(ctx.delta(UKF, 'samples lost')) - facts['in_bag']
-
-
-def replay_estimated(ctx, facts):
-    """An estimate for every recorded pressure sample, or the loss reported."""
-    missing, reported = replay_counts(ctx, facts)
-    play = ctx.tools[-1]
-    got = sorted(m.sample for m in ctx.received('/pam/estimate'))
-    seen = f', counters {got[0]}..{got[-1]} of {facts["counters"][0]}..{facts["counters"][1]}' \
-        if got else ''
-    return Verdict(play.code == 0 and reported >= missing,
-                   f"bag_play exit {play.code}; {facts['recorded'] - missing}/"
-                   f"{facts['recorded']} samples estimated{seen}, {reported} reported as "
-                   f"'samples lost' ({facts['in_bag']} more: gaps recorded in the bag)")
-
-
-def replay_loss(ctx, facts):
-    if 'recorded' not in facts:
-        return '-'
-    missing, reported = replay_counts(ctx, facts)
-    return max(missing - reported, 0)
-
-
-def damaged_bag(source: str, *damages):
-    """A copy of bags/<source> with each damage(bag) applied, through every bag tool."""
-    def act(ctx):
-        bag = copy_bag(BAGS / source, ctx.folder)
-        done = [damage(bag) for damage in damages]
-        return {'runs': bag_tools(ctx, bag), 'bag_name': source, 'done': done}
-    return act
-
-
-# --- params files
-PARAMS_FILE_EXES = (('sim_node', 'pam_driver'), ('driver_node', 'pam_driver'),
-                    ('profile_player', 'pam_driver'), ('bag_record', 'pam_driver'),
-                    ('bag_play', 'pam_driver'), ('ukf_node', 'pam_estimator'),
-                    ('pi_node', 'pam_controller'), ('reference_node', 'pam_controller'),
-                    ('tracking_report', 'pam_controller'))
-
-
-# --- stops during start-up
-#: C extensions of numpy and rclpy: the first one mapped, a process's imports are under way
-IMPORTING = ('_multiarray_umath', '_rclpy_pybind11')
-STARTUP_EXES = (*PARAMS_FILE_EXES, ('pam-evaluate', 'pam_estimator'),
-                ('pam-identify', 'pam_estimator'))
-
-
-def stopped_while_importing(sig: int):
-    """`sig` to every node and batch tool during its imports, three at a time."""
-    def act(ctx):
-        importing = (sig, maps_holds(*IMPORTING))
-        with ThreadPoolExecutor(3) as pool:
-            futures = {exe: pool.submit(run_tool, exe, package, (), ctx.env, ctx.folder, 60.0,
-                                        importing) for exe, package in STARTUP_EXES}
-            runs = {exe: f.result() for exe, f in futures.items()}
-        ctx.tools += runs.values()
-        return {'runs': runs, 'code': 128 + sig}
-    return act
-
-
-def quiet_exits(ctx, facts):
-    """Each run exited with facts['code'] and printed nothing."""
-    bad = [f'{exe}: exit {run.code}, {len(run.stdout + run.stderr)} bytes of output'
-           for exe, run in facts['runs'].items()
-           if run.code != facts['code'] or run.stdout or run.stderr]
-    n = len(facts['runs'])
-    return Verdict(not bad, f"{n - len(bad)}/{n} exit {facts['code']}, silent" +
-                   ('; ' + '; '.join(bad) if bad else ''))
-
-
-def params_file_to_all(kind: str):
-    """The malformed params file of `kind` (pam_driver.testing.MALFORMED_PARAMS_FILES) to every
-    node and pam-bringup, three at a time."""
-    def act(ctx):
-        path, line = malformed_params_file(ctx.folder, kind)
-        jobs = {exe: (exe, package, '--ros-args', '--params-file', path)
-                for exe, package in PARAMS_FILE_EXES}
-        jobs['pam-bringup'] = ('pam-bringup', 'pam_controller', '--params-file', path,
-                               '--domain-id', ctx.domain, '--duration', 5)
-        with ThreadPoolExecutor(3) as pool:
-            futures = {exe: pool.submit(ctx.tool, *job) for exe, job in jobs.items()}
-            runs = {exe: f.result() for exe, f in futures.items()}
-        return {'runs': runs, 'path': path, 'line': line}
-    return act
-
-
-#: A double parameter of each node, for bad start-up values.
-DOUBLE_PARAM = {'sim_node': 'rate', 'driver_node': 'watchdog_timeout', 'ukf_node': 'pressure_min',
-                'pi_node': 'kp_angle', 'reference_node': 'amplitude',
-                'profile_player': 'duration', 'bag_record': 'chunk_interval', 'bag_play': 'rate',
-                'tracking_report': 'duration'}
-
-
-def start_with_bad_value(value: str):
-    """Every node started with `-p <one of its double parameters>:=value`, three at a time."""
-    def act(ctx):
-        with ThreadPoolExecutor(3) as pool:
-            futures = {exe: pool.submit(ctx.tool, exe, package, '--ros-args', '-p',
-                                        f'{DOUBLE_PARAM[exe]}:={value}')
-                       for exe, package in PARAMS_FILE_EXES}
-            return {'runs': {exe: f.result() for exe, f in futures.items()}}
-    return act
-
-
-def bad_value_refused(ctx, facts):
-    """Every node exited with code 2 and one stderr line naming its parameter."""
-    bad = []
-    for exe, run in facts['runs'].items():
-        lines = run.lines()
-        if run.code != 2 or len(lines) != 1 or f"parameter '{DOUBLE_PARAM[exe]}'" not in lines[0]:
-            bad.append(f'{exe}: exit {run.code}, {len(lines)} lines: {(lines or [""])[0][:100]}')
-    n = len(facts['runs'])
-    return Verdict(not bad, f'{n - len(bad)}/{n} exit 2, one line naming the parameter' +
-                   ('; ' + '; '.join(bad) if bad else ''))
-
-
-def unknown_name_in_every_node(ctx):
-    """Every node started with a params file setting an unknown name (and the bag it needs):
-    each must warn about it; stopped as soon as all did (or after 60 s)."""
-    path = ctx.folder / 'unknown.yaml'
-    path.write_text('/**:\n  ros__parameters:\n    no_such_parameter: 1.0\n')
-    extra = {'bag_play': ['-p', f'bag:={BAGS / "closed_mild_angle"}'],
-             'profile_player': ['-p', 'startup_timeout:=300.0'],
-             'tracking_report': ['-p', 'startup_timeout:=300.0'],
-             'bag_record': ['-p', f'output:={ctx.folder / "rec"}'],
-             'driver_node': ['-p', f'port:={ctx.folder / "no_device"}']}
-    for exe, package in PARAMS_FILE_EXES:
-        ctx.procs.append(NodeProcess(exe, package, ['--ros-args', '--params-file', str(path),
-                                                    *extra.get(exe, [])], ctx.env,
-                                     cwd=ctx.folder))
-    text = "ignoring unknown parameter 'no_such_parameter'"
-    wait_until(lambda: all(text in p.stderr for p in ctx.procs), 60.0, 0.2)
-    return {'warned': {p.name: text in p.stderr for p in ctx.procs}}
 
 
 # ============================================================================ groups
@@ -817,6 +236,13 @@ def feed_loss(node: str, unanswered_of):
             return 'n/a'
         return max(len(unanswered_of(ctx, sent)) - int(reported), 0)
     return loss
+
+
+def replay_loss(ctx, facts):
+    if 'recorded' not in facts:
+        return '-'
+    missing, reported = replay_counts(ctx, facts)
+    return max(missing - reported, 0)
 
 
 def serial_loss(ctx, facts):
