@@ -107,18 +107,25 @@ class TrackingReport(Node):
             return self.finished.result()
         if self.first_ns is None:
             return 130                      # interrupted before anything was recorded
-        return self.report()
+        return self.report(interrupted=not self.finished.done())
 
-    def report(self) -> int:
+    def report(self, interrupted: bool = False) -> int:
+        """Print the report; exit code 0, or 1 (130 if interrupted) when there is nothing to
+        report: too few samples, or no reference held long enough to be a step."""
         from pam_model.metrics import metrics
+        nothing = 130 if interrupted else 1
         if len(self.truth) < 100:
             print('tracking_report: too few samples recorded', flush=True)
-            return 1
+            return nothing
         t, mode, reference, measured, estimate, commands = self.series()
         angle = mode == Reference.ANGLE
         span, scale, unit = (ANGLE_SPAN, np.degrees(1.0), 'deg') if angle else (TORQUE_SPAN, 1.0,
                                                                                  'Nm')
         report = step_report(t, reference, measured, span, 2.0)
+        if not report.steps:
+            print(f'tracking_report: {t[-1]:.1f} s recorded, but no reference was held 2 s or '
+                  'more: no step to report', flush=True)
+            return nothing
         rate = (len(t) - 1) / max(t[-1], 1e-9)
         print(f'tracking report: {"angle" if angle else "torque"} mode, {t[-1]:.1f} s, '
               f'{len(t)} samples ({rate:.0f} Hz); errors against the measured value, % of the '

@@ -33,6 +33,7 @@ _LEVELS_BY_NAME = {name: level for level, name in LEVEL_NAMES.items()}
 _LEVELS_BY_NAME['WARNING'] = WARN
 
 DIAGNOSTICS_TOPIC = '/diagnostics'
+NOT_AVAILABLE = 'n/a'     # the text of a non-finite value (format_value)
 
 
 def level_from(level) -> bytes:
@@ -57,7 +58,9 @@ def level_from(level) -> bytes:
 
 def format_value(value, digits: int = 6) -> str:
     """A value as the string of a KeyValue: bools 'true'/'false', floats with `digits`
-    significant digits ('nan', 'inf' as such), sequences as comma-separated items."""
+    significant digits, sequences as comma-separated items. A non-finite float (a figure not
+    available yet: no sample received, no rate window, no watchdog trip) is 'n/a': /diagnostics
+    never carries a non-finite number either (the fault campaign counts them)."""
     if isinstance(value, str):
         return value
     if isinstance(value, bool):
@@ -65,10 +68,8 @@ def format_value(value, digits: int = 6) -> str:
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        if math.isnan(value):
-            return 'nan'
-        if math.isinf(value):
-            return 'inf' if value > 0 else '-inf'
+        if not math.isfinite(value):
+            return NOT_AVAILABLE
         return f'{value:.{digits}g}'
     if isinstance(value, (bytes, bytearray)):
         return value.hex()

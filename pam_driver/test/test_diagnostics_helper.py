@@ -13,7 +13,7 @@ from pam_driver.diagnostics import (ERROR, OK, WARN, DiagnosticsPublisher, forma
 @pytest.mark.parametrize('value, text', [
     ('free', 'free'), (True, 'true'), (False, 'false'), (42, '42'), (-1, '-1'),
     (1000.0, '1000'), (999.8123456, '999.812'), (0.000123456789, '0.000123457'),
-    (math.nan, 'nan'), (math.inf, 'inf'), (-math.inf, '-inf'),
+    (math.nan, 'n/a'), (math.inf, 'n/a'), (-math.inf, 'n/a'), ([1.0, math.nan], '1, n/a'),
     ([5.5, 10.0], '5.5, 10'), ((1, 'a'), '1, a'),
     (np.float64(2.5), '2.5'), (np.int64(7), '7'), (np.array([1.0, 2.0]), '1, 2'),
 ])
