@@ -11,6 +11,11 @@ rate factor, loop, topic selection, remapping, start offset, start paused (resum
 message to send, so after a stall /clock does not run past unsent data).
 At the end it waits (at most `wait_for_all_acked`) for reliable subscribers to acknowledge every
 message: a sample not acknowledged when the writer's process exits is lost.
+At the start (after `delay`, unless start paused) it waits at most `wait_for_subscribers` for a
+matched subscription on every topic it plays: discovery matches each pair of processes on its own
+and can take one announcement period (3 s), and a message sent before that is lost to the late
+subscriber. Messages sent on a topic before it had any subscriber are counted: a warning when it
+gets its first, and the totals in the end summary.
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
 package, a topic recorded with another definition of its type than the installed one: its
 channel's RIHS01 topic_type_hash, or the hash of its embedded definition, differs from the
@@ -61,6 +66,10 @@ PARAMETERS = (
     ParamSpec('delay', 0.5, 'double', 's',
               'Wait this long after creating the publishers (for subscribers to match).',
               range=(0.0, 60.0)),
+    ParamSpec('wait_for_subscribers', 4.0, 'double', 's',
+              'After `delay`, wait at most this long until every played topic has a matched '
+              'subscription (DDS discovery can take one 3 s announcement period), then play; '
+              'not when start_paused; 0: do not wait.', range=(0.0, 600.0)),
     ParamSpec('read_ahead_size', 10000, 'integer', 'messages',
               'Messages read ahead of playback by a background thread (memory stays bounded '
               'however long the bag).', range=(100, 10_000_000)),
@@ -127,6 +136,9 @@ class BagPlayer(Node):
         self.lateness_ns = np.zeros(LATENESS_KEPT, dtype=np.int64)   # a ring, by published
         self.published = 0
         self.read_waits = 0       # 0.1 s waits for the read-ahead (the reading fell behind)
+        # per publisher: whether it has had a matched subscription, messages sent before that
+        self.matched = [False] * len(self.publishers_by_index)
+        self.sent_unmatched = [0] * len(self.publishers_by_index)
         self.exit_code = 0
         self._running = threading.Event()
         if not values['start_paused']:
@@ -156,6 +168,10 @@ class BagPlayer(Node):
     def _on_resume(self, request, response):
         response.success = not self._running.is_set()
         response.message = 'resumed' if response.success else 'already playing'
+        if response.success:
+            self.get_logger().info('resumed; matched subscriptions: ' + ', '.join(
+                f'{pub.topic_name} {pub.get_subscription_count()}'
+                for pub in self.publishers_by_index))
         self._running.set()
         return response
 
@@ -181,6 +197,36 @@ class BagPlayer(Node):
         msg.clock.sec, msg.clock.nanosec = divmod(int(bag_ns), 1_000_000_000)
         self.clock_pub.publish(msg)
 
+    def _wait_for_subscribers(self) -> None:
+        """Block until every publisher has a matched subscription, at most
+        `wait_for_subscribers` s; on timeout log the topics without one and go on."""
+        start = time.monotonic()
+        end = start + self.values['wait_for_subscribers']
+        while not self._quit.is_set():
+            missing = [pub.topic_name for pub in self.publishers_by_index
+                       if pub.get_subscription_count() == 0]
+            if not missing:
+                self.get_logger().info(f'every topic has a subscriber (waited '
+                                       f'{time.monotonic() - start:.2f} s); playing')
+                return
+            if time.monotonic() >= end:
+                self.get_logger().info(f'playing; no subscriber yet on: {", ".join(missing)}')
+                return
+            self._quit.wait(0.01)
+
+    def _count_unmatched(self, index: int) -> None:
+        """Before publishing on publisher `index`: count the message when the topic has never
+        had a subscriber (it is lost to any that matches later); warn once at the first one."""
+        pub = self.publishers_by_index[index]
+        if pub.get_subscription_count() == 0:
+            self.sent_unmatched[index] += 1
+            return
+        self.matched[index] = True
+        if self.sent_unmatched[index]:
+            self.get_logger().warn(
+                f'{pub.topic_name}: first subscriber matched after {self.sent_unmatched[index]} '
+                'messages of it were sent (lost to it)')
+
     def _wait_for_all_acked(self) -> None:
         """Messages a reliable subscriber has not yet acknowledged are lost when the process
         exits: wait for them (at most `wait_for_all_acked` s in all). Not after Ctrl-C/SIGTERM:
@@ -202,6 +248,8 @@ class BagPlayer(Node):
         source = None
         try:
             time.sleep(self.values['delay'])
+            if not self.values['start_paused'] and self.values['wait_for_subscribers'] > 0:
+                self._wait_for_subscribers()
             source = ReadAhead(self._passes(), capacity=self.values['read_ahead_size'],
                                name='bag_read')
             self._play_passes(source)
@@ -237,7 +285,7 @@ class BagPlayer(Node):
     def _play_passes(self, source) -> None:
         rate = self.values['rate']
         clock_period = (1e9 / self.values['clock']) if self.clock_pub is not None else None
-        pubs, lateness = self.publishers_by_index, self.lateness_ns
+        pubs, lateness, matched = self.publishers_by_index, self.lateness_ns, self.matched
         first = self.bag.first_ns
         item = self._next(source)
         while item is not END:
@@ -267,6 +315,8 @@ class BagPlayer(Node):
                         wait = min(wait, max(0, next_clock - now))
                     if wait > SPIN_AHEAD * 1e9:
                         time.sleep((wait - SPIN_AHEAD * 1e9) * 1e-9)
+                if not matched[topic]:
+                    self._count_unmatched(topic)
                 pubs[topic].publish(data)
                 lateness[self.published % LATENESS_KEPT] = time.monotonic_ns() - due
                 self.published += 1
@@ -286,6 +336,11 @@ class BagPlayer(Node):
                   f'{p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us', flush=True)
         else:
             print(f'[{NODE_NAME}] published {self.published} messages', flush=True)
+        lost = [f'{pub.topic_name} {n}' for pub, n in zip(self.publishers_by_index,
+                                                           self.sent_unmatched) if n]
+        if lost:
+            print(f'[{NODE_NAME}] sent before any subscriber matched: {", ".join(lost)}',
+                  flush=True)
         if self.read_waits:
             print(f'[{NODE_NAME}] warning: playback waited {self.read_waits} times 0.1 s for '
                   'the bag to be read (a slow disk? a larger read_ahead_size may help)',

@@ -349,3 +349,54 @@ def test_clock_publishes_the_bag_time_at_the_requested_rate(node_process, probe,
     span = wall[-1] - wall[0]
     assert 35.0 < (len(items) - 1) / span < 65.0         # 50 Hz of wall time
     assert 1.6 < (bag_ns[-1] - bag_ns[0]) * 1e-9 / span < 2.4   # bag time runs at rate 2
+
+
+# ------------------------------------------------ bag_play waits for its subscribers to match
+def test_default_start_waits_for_the_subscriber_and_delivers_every_message(node_process, probe,
+                                                                           small_bag):
+    """Default parameters, a subscriber that exists already: bag_play plays only once the pair
+    has matched (the fixed 0.5 s delay alone lost the first messages when discovery took one
+    3 s announcement period), so every message arrives and none is counted as unmatched."""
+    got = pressures(probe)
+    player = node_process('bag_play', 'pam_driver', '-p', f'bag:={small_bag}')
+    assert player.wait_exit(30.0) == 0, player.stderr
+    assert 'every topic has a subscriber (waited' in player.stderr, player.stderr
+    wait_until(lambda: len(got) >= N, 5.0)
+    assert [index(m) for m in got.messages()] == list(range(N))
+    assert 'sent before any subscriber matched' not in player.stdout, player.stdout
+
+
+def test_a_topic_without_subscriber_starts_after_the_bound_and_counts_the_lost(node_process,
+                                                                              probe, small_bag):
+    """Nobody subscribes to /nobody/pressures: play starts after wait_for_subscribers (1 s) with
+    one line naming it; a subscriber that comes once messages were sent (the /clock bag time,
+    never ahead of the next message to send, shows they were) gets a warning with the count of
+    those, and the end summary the total."""
+    from rosgraph_msgs.msg import Clock
+    clock = probe.subscribe(Clock, '/clock', depth=1000)
+    start = time.monotonic()
+    player = play(node_process, small_bag, 'remap:=/pam/pressures:=/nobody/pressures',
+                  'wait_for_subscribers:=1.0', 'loop:=true', 'clock:=50.0', delay=0.0)
+    player.wait_for(lambda: 'playing; no subscriber yet on: /nobody/pressures' in player.stderr,
+                    30.0, 'the no-subscriber line')
+    assert time.monotonic() - start >= 1.0
+    sent = 10**18 + 10 * PERIOD     # the bag time once 10 messages were sent
+    player.wait_for(lambda: any(stamp_ns(m.clock) > sent for m in clock.messages()), 30.0,
+                    'ten messages sent')
+    got = pressures(probe, '/nobody/pressures')
+    player.wait_for(lambda: 'first subscriber matched after' in player.stderr, 30.0,
+                    'the late-subscriber warning')
+    wait_until(lambda: len(got) > 0, 10.0)
+    assert player.stop() == 0
+    line = next(s for s in player.stderr.splitlines() if 'first subscriber matched' in s)
+    lost = int(line.split('first subscriber matched after ')[1].split()[0])
+    assert lost >= 10 and '/nobody/pressures' in line and 'WARN' in line, line
+    assert f'sent before any subscriber matched: /nobody/pressures {lost}' in player.stdout
+
+
+def test_negative_wait_for_subscribers_is_refused_in_one_line(node_process, small_bag):
+    player = play(node_process, small_bag, 'wait_for_subscribers:=-1.0')
+    assert player.wait_exit(30.0) == 2
+    assert player.stderr.splitlines() == [
+        "[bag_play] error: parameter 'wait_for_subscribers': -1.0 is out of range "
+        "[0.0, 600.0]"], player.stderr
