@@ -28,8 +28,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from pam_interfaces.msg import (JointEstimate, JointMeasurement, Pressures,  # noqa: E402
                                 ValveCommand)
 
-from pam_driver.bags import bag_info, load_bag, make_typestore  # noqa: E402
-from pam_driver.sample_gaps import SampleGaps, loss_summary  # noqa: E402
+from pam_bag.bags import bag_info, load_bag, make_typestore  # noqa: E402
+from pam_common.sample_gaps import SampleGaps, loss_summary  # noqa: E402
 
 
 def main() -> int:

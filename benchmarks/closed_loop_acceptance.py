@@ -20,7 +20,7 @@ import os
 import time
 
 from pam_controller.lockstep_run import run_lockstep_steps
-from pam_driver.sample_gaps import loss_summary
+from pam_common.sample_gaps import loss_summary
 from pam_model.profiles import step_reference_profile
 
 TARGETS = {'angle': 3.0, 'torque': 3.5}

@@ -22,7 +22,7 @@ import time
 import rclpy
 from rclpy.context import Context
 
-from pam_driver.testing import NodeProcess, Probe, child_env, wait_until
+from pam_common.testing import NodeProcess, Probe, child_env, wait_until
 from pam_interfaces.msg import JointEstimate, Pressures
 
 

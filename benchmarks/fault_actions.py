@@ -14,8 +14,8 @@ from typing import NamedTuple
 
 from fault_inputs import (Feed, Parameters, command_message, copy_bag, lockstep_command)
 from fault_stack import maps_holds, run_tool
-from pam_driver.sample_gaps import SampleGaps
-from pam_driver.testing import NodeProcess, malformed_params_file, stamp_ns, wait_until
+from pam_common.sample_gaps import SampleGaps
+from pam_common.testing import NodeProcess, malformed_params_file, stamp_ns, wait_until
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 
@@ -233,8 +233,8 @@ def kill_recorder(ctx):
     time.sleep(3.0)
     ctx.stack.kill('bag_record')
     bag = ctx.run.folder / 'recorded'
-    runs = {'recover': ctx.tool('pam-bag-recover', 'pam_driver', bag)}
-    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
+    runs = {'recover': ctx.tool('pam-bag-recover', 'pam_bag', bag)}
+    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_bag', bag)
     return {'runs': runs, 'bag_name': 'recorded'}
 
 
@@ -245,14 +245,14 @@ READERS = ('info', 'play', 'evaluate', 'identify')
 def bag_tools(ctx, bag: Path) -> dict:
     """Every bag tool on `bag`: pam-bag-info, bag_play, pam-evaluate, pam-identify; then
     pam-bag-recover and pam-bag-info on what it rebuilt."""
-    runs = {'info': ctx.tool('pam-bag-info', 'pam_driver', bag),
-            'play': ctx.tool('bag_play', 'pam_driver', '--ros-args', '-p', f'bag:={bag}',
+    runs = {'info': ctx.tool('pam-bag-info', 'pam_bag', bag),
+            'play': ctx.tool('bag_play', 'pam_bag', '--ros-args', '-p', f'bag:={bag}',
                              '-p', 'rate:=50.0', '-p', 'delay:=0.0'),
             'evaluate': ctx.tool('pam-evaluate', 'pam_estimator', bag),
             'identify': ctx.tool('pam-identify', 'pam_estimator', bag, '-o',
                                  ctx.folder / 'identified')}
-    runs['recover'] = ctx.tool('pam-bag-recover', 'pam_driver', bag)
-    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_driver', bag)
+    runs['recover'] = ctx.tool('pam-bag-recover', 'pam_bag', bag)
+    runs['info (recovered)'] = ctx.tool('pam-bag-info', 'pam_bag', bag)
     return runs
 
 
@@ -260,13 +260,13 @@ def replay(source: str, topics: str):
     """bag_play bags/<source> (these topics, rate 1) into the group's ukf_node; facts: the
     recorded /pam/pressures and the gaps already in their sample counter."""
     def act(ctx):
-        from pam_driver.bags import load_bag, make_typestore
+        from pam_bag.bags import load_bag, make_typestore
         contents, gaps = load_bag(BAGS / source, ['/pam/pressures']), SampleGaps()
         counters = [msg.sample for _, msg in contents.deserialized('/pam/pressures',
                                                                    make_typestore())]
         for sample in counters:
             gaps.update(sample)
-        ctx.tool('bag_play', 'pam_driver', '--ros-args', '-p', f'bag:={BAGS / source}',
+        ctx.tool('bag_play', 'pam_bag', '--ros-args', '-p', f'bag:={BAGS / source}',
                  '-p', f'topics:={topics}')
         return {'recorded': gaps.received + gaps.uncounted, 'in_bag': gaps.lost,
                 'counters': (counters[0], counters[-1])}
@@ -284,10 +284,10 @@ def damaged_bag(source: str, *damages):
 
 # --- params files
 PARAMS_FILE_EXES = (('sim_node', 'pam_driver'), ('driver_node', 'pam_driver'),
-                    ('profile_player', 'pam_driver'), ('bag_record', 'pam_driver'),
-                    ('bag_play', 'pam_driver'), ('ukf_node', 'pam_estimator'),
+                    ('profile_player', 'pam_controller'), ('bag_record', 'pam_bag'),
+                    ('bag_play', 'pam_bag'), ('ukf_node', 'pam_estimator'),
                     ('pi_node', 'pam_controller'), ('reference_node', 'pam_controller'),
-                    ('tracking_report', 'pam_controller'))
+                    ('tracking_report', 'pam_bringup'))
 
 
 # --- stops during start-up
@@ -311,13 +311,13 @@ def stopped_while_importing(sig: int):
 
 
 def params_file_to_all(kind: str):
-    """The malformed params file of `kind` (pam_driver.testing.MALFORMED_PARAMS_FILES) to every
+    """The malformed params file of `kind` (pam_common.testing.MALFORMED_PARAMS_FILES) to every
     node and pam-bringup, three at a time."""
     def act(ctx):
         path, line = malformed_params_file(ctx.folder, kind)
         jobs = {exe: (exe, package, '--ros-args', '--params-file', path)
                 for exe, package in PARAMS_FILE_EXES}
-        jobs['pam-bringup'] = ('pam-bringup', 'pam_controller', '--params-file', path,
+        jobs['pam-bringup'] = ('pam-bringup', 'pam_bringup', '--params-file', path,
                                '--domain-id', ctx.domain, '--duration', 5)
         with ThreadPoolExecutor(3) as pool:
             futures = {exe: pool.submit(ctx.tool, *job) for exe, job in jobs.items()}

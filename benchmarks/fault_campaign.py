@@ -64,8 +64,8 @@ from fault_inputs import (HUGE, INF, NAN, Feed, command_message, estimate_messag
                           remove_metadata, remove_split_file, truncate)
 from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, new_folder, number, run_tool,
                          traceback_count)
-from pam_driver.sample_gaps import SampleGaps
-from pam_driver.testing import MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env
+from pam_common.sample_gaps import SampleGaps
+from pam_common.testing import MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env
 
 SETTLE = 0.3          # s after a case's inputs before the /diagnostics it is judged on
 SAFE_SLACK = 0.5      # s allowed on top of a watchdog's time on a loaded machine
@@ -335,7 +335,7 @@ GROUPS = {g.name: g for g in [
           [*LOOP_OUT, (M['ValveCommand'], '/pam/driver_node/applied_command')], None,
           ('driver_node', 'ukf_node', 'pi_node')),
     Group('record', {'sim_node': NodeSpec('sim_node', 'pam_driver', (), 'sim_node'),
-                     'bag_record': NodeSpec('bag_record', 'pam_driver',
+                     'bag_record': NodeSpec('bag_record', 'pam_bag',
                                             ros('output:=recorded'))},
           RIG_OUT, None, ('sim_node',)),
     Group('replay', {'ukf_node': NodeSpec('ukf_node', 'pam_estimator', (), 'ukf_node',

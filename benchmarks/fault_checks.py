@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 from fault_inputs import unanswered
-from pam_driver.testing import stamp_ns, wait_until
+from pam_common.testing import stamp_ns, wait_until
 
 
 @dataclass

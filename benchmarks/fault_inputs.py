@@ -17,7 +17,7 @@ import struct
 import time
 from pathlib import Path
 
-from pam_driver.testing import stamp_ns, wait_until
+from pam_common.testing import stamp_ns, wait_until
 
 NAN, INF = math.nan, math.inf
 HUGE = 1e300          # finite, far outside every physical range
@@ -202,8 +202,8 @@ def flip_in_chunk(bag: Path, index: int = 2, nbytes: int = 16) -> str:
 
 def flip_unnoticed(bag: Path, index: int = 2) -> str:
     """Damage chunk `index` of the bag's first file so that it still decompresses into complete
-    records, only other ones (pam_driver.testing.damage_chunk): only a CRC tells."""
-    from pam_driver.testing import damage_chunk
+    records, only other ones (pam_common.testing.damage_chunk): only a CRC tells."""
+    from pam_bag.testing import damage_chunk
     mcap = mcap_files(bag)[0]
     at = damage_chunk(mcap, index)
     return f'8 bytes flipped at {at} in chunk {index} of {mcap.name} (zstd does not notice)'

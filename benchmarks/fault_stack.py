@@ -22,8 +22,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from pam_driver.executables import find_executable
-from pam_driver.testing import (DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env,
+from pam_common.executables import find_executable
+from pam_common.testing import (DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env,
                                 wait_until)
 
 STARTUP = 60.0        # s: a fresh node's first /diagnostics on a loaded 2-core machine
@@ -34,7 +34,7 @@ TOOL_TIMEOUT = 120.0  # s: one command-line tool run
 def campaign_domain() -> int:
     """A ROS_DOMAIN_ID of the campaign in 200..229, apart from the tests' 1..101 and the
     benchmarks' 110..199, held by an exclusive flock for this process's life the way the tests
-    hold theirs (pam_driver.testing.DOMAIN_LOCKS: two runs at once never share a domain);
+    hold theirs (pam_common.testing.DOMAIN_LOCKS: two runs at once never share a domain);
     exported to this process (rclpy.init and child_env read it)."""
     import fcntl
     for k in range(30):

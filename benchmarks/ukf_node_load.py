@@ -21,9 +21,9 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 
-from pam_driver.diagnostics import status_values
-from pam_driver.sample_gaps import SampleGaps, loss_summary
-from pam_driver.testing import (NodeProcess, Probe, child_env, diagnostic_statuses, stamp_ns,
+from pam_common.diagnostics import status_values
+from pam_common.sample_gaps import SampleGaps, loss_summary
+from pam_common.testing import (NodeProcess, Probe, child_env, diagnostic_statuses, stamp_ns,
                                 wait_until)
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 

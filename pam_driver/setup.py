@@ -17,19 +17,14 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='Simulated antagonistic PAM rig (sim_node), drop-in for the hardware driver.',
+    description='What faces the PAM rig, real or simulated: driver_node, the DAQ protocol, calibration, pam-emulator, sim_node.',
     license='Apache-2.0',
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'sim_node = pam_driver.entry_points:sim_node',
-            'profile_player = pam_driver.entry_points:profile_player',
             'driver_node = pam_driver.entry_points:driver_node',
             'pam-emulator = pam_driver.entry_points:pam_emulator',
-            'bag_record = pam_driver.entry_points:bag_record',
-            'bag_play = pam_driver.entry_points:bag_play',
-            'pam-bag-info = pam_driver.entry_points:pam_bag_info',
-            'pam-bag-recover = pam_driver.entry_points:pam_bag_recover',
         ],
     },
 )

@@ -3,7 +3,7 @@
 # pam-bringup starts, as separate processes talking over DDS, the simulated rig (sim_node at
 # 1 kHz, the 'mild' mismatched plant with its noisy 12-bit pressure sensors), the UKF (ukf_node,
 # nominal model), the PI controller (pi_node, feedback = the estimate) and reference_node
-# (paper-style angle steps within +-20 deg, 8 s each), from pam_controller/config/bringup.yaml.
+# (paper-style angle steps within +-20 deg, 8 s each), from pam_bringup/config/bringup.yaml.
 # tracking_report records DURATION seconds, then prints per step the steady-state error against
 # the true (measured) angle and the settling time, the estimation error, and writes a figure like
 # the paper's Fig. 14 to out/demo_tracking.png.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Soak run: one test (or any pytest selection) N times in a row in one pytest session, e.g.
-#   scripts/soak.sh 100 'pam_controller/test/test_bringup.py::test_rig_driver_runs_against_the_emulator'
+#   scripts/soak.sh 100 'pam_bringup/test/test_bringup.py::test_rig_driver_runs_against_the_emulator'
 # Prints pytest's summary, the pass/fail count and the wall time; exit code 0 only if every round
 # passed. Rounds run on one module domain and probe context, as in `make test`.
 set -euo pipefail

@@ -3,7 +3,7 @@ processes, reference steps published by a probe node at fixed simulated times. D
 to the reference switch (taken at the first sample whose stamp reaches the switch time).
 
 Used by the topic-level closed-loop test and by benchmarks/closed_loop_acceptance.py. Needs the
-project's executables and pytest (pam_driver.testing).
+project's executables and pytest (pam_common.testing).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 
-from pam_driver.diagnostics import status_values
-from pam_driver.testing import NodeProcess, Probe, child_env, diagnostic_statuses, stamp_ns
+from pam_common.diagnostics import status_values
+from pam_common.testing import NodeProcess, Probe, child_env, diagnostic_statuses, stamp_ns
 from pam_interfaces.msg import JointMeasurement, Reference
 
 from .step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report

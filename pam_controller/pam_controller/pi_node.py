@@ -34,13 +34,13 @@ from std_srvs.srv import SetBool
 from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement, Reference,
                                 ValveCommand)
 
-from pam_driver.diagnostics import OK, WARN, DiagnosticsPublisher
-from pam_driver.executors import run_node
-from pam_driver.finite_guard import FiniteGuard
-from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_command,
+from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
+from pam_common.executors import run_node
+from pam_common.finite_guard import FiniteGuard
+from pam_common.node_params import (ConfigError, ParamSpec, check_all, check_command,
                                     declare_parameters, merge_overrides, usage_text, wants_help)
-from pam_driver.sample_gaps import WARN_RATIO_PARAM, SampleGaps
-from pam_driver.throttled_log import ThrottledLogs
+from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
+from pam_common.throttled_log import ThrottledLogs
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
 from .pi import ANTI_WINDUP, PiGains, validate_gains

@@ -21,10 +21,10 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from pam_interfaces.msg import Reference
 
-from pam_driver.diagnostics import OK, DiagnosticsPublisher
-from pam_driver.executors import run_node
-from pam_driver.finite_guard import FiniteGuard
-from pam_driver.node_params import (ParamSpec, check_all, declare_parameters, fail,
+from pam_common.diagnostics import OK, DiagnosticsPublisher
+from pam_common.executors import run_node
+from pam_common.finite_guard import FiniteGuard
+from pam_common.node_params import (ParamSpec, check_all, declare_parameters, fail,
                                     merge_overrides, usage_text, wants_help)
 
 from .control_loop import ENVELOPE, MODE_NAMES

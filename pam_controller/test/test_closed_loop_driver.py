@@ -72,7 +72,7 @@ import pytest
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 from std_srvs.srv import Trigger
 
-from pam_driver.testing import STOP_TIMEOUT, stamp_ns
+from pam_common.testing import STOP_TIMEOUT, stamp_ns
 
 STARTUP = 45.0            # s, a fresh process on a loaded 2-core machine
 PRE = 2.0                 # s at reference 0 once the loop runs (and the driver is armed)

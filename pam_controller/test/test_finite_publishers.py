@@ -9,10 +9,10 @@ import pkgutil
 
 import pytest
 
-from pam_driver.finite_guard import float_fields
+from pam_common.finite_guard import float_fields
 
-PACKAGES = ('pam_driver', 'pam_estimator', 'pam_controller')
-EXEMPT = {'pam_driver.bag_play'}          # raw recorded bytes, published as recorded
+PACKAGES = ('pam_common', 'pam_bag', 'pam_driver', 'pam_estimator', 'pam_controller', 'pam_bringup')
+EXEMPT = {'pam_bag.bag_play'}          # raw recorded bytes, published as recorded
 
 
 def node_modules():
@@ -50,7 +50,7 @@ MODULES = sorted(node_modules())
 
 def test_the_node_modules_are_found():
     names = {name for name, _ in MODULES}
-    assert {'pam_driver.sim_node', 'pam_driver.driver_node', 'pam_driver.profile_player',
+    assert {'pam_driver.sim_node', 'pam_driver.driver_node', 'pam_controller.profile_player',
             'pam_estimator.ukf_node', 'pam_controller.pi_node',
             'pam_controller.reference_node'} <= names
 

@@ -1,5 +1,5 @@
 """pi_node's and pam-bringup's params files, and the controller nodes' parameter names
-(pam_driver.params_files, declare_parameters): a malformed or missing params file stops them with
+(pam_common.params_files, declare_parameters): a malformed or missing params file stops them with
 exit code 2 and one line on stderr naming the file (and the line), pam-bringup before it starts
 any node; an unknown parameter name (on the command line or in a file) is a warning naming the
 closest known one."""
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from pam_controller.bringup import section_keys, sections_for
-from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
+from pam_bringup.bringup import section_keys, sections_for
+from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
                                 assert_node_refuses_params_file, assert_params_file_error,
                                 malformed_params_file)
 
@@ -22,7 +22,7 @@ def test_pi_node_malformed_params_file_is_one_line(node_process, tmp_path, kind)
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
 def test_bringup_refuses_a_malformed_params_file_before_starting(node_process, tmp_path, kind):
     path, line = malformed_params_file(tmp_path, kind)
-    run = node_process('pam-bringup', 'pam_controller', '--params-file', str(path), raw=True)
+    run = node_process('pam-bringup', 'pam_bringup', '--params-file', str(path), raw=True)
     assert_params_file_error(run, 'pam-bringup:', path, line)
     assert run.stdout == '', run.stdout        # nothing started
 

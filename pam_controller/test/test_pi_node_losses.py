@@ -5,8 +5,8 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
-from pam_driver.diagnostics import status_values
-from pam_driver.testing import diagnostic_statuses, wait_until
+from pam_common.diagnostics import status_values
+from pam_common.testing import diagnostic_statuses, wait_until
 from pam_interfaces.msg import JointEstimate
 
 

@@ -11,8 +11,8 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from std_srvs.srv import SetBool
 
-from pam_driver.diagnostics import WARN, status_values
-from pam_driver.testing import diagnostic_statuses, wait_until
+from pam_common.diagnostics import WARN, status_values
+from pam_common.testing import diagnostic_statuses, wait_until
 from pam_interfaces.msg import ControllerState, JointEstimate, Reference, ValveCommand
 
 

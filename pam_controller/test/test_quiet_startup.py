@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from pam_controller.bringup import CLEAN_STOP_CODES
-from pam_driver.testing import child_env, executable
+from pam_bringup.bringup import CLEAN_STOP_CODES
+from pam_common.testing import child_env, executable
 from pam_model.cli.startup import exit_code_for
 
 IMPORTING = '_multiarray_umath'     # numpy's C extension: the imports are under way

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from pam_driver.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
+from pam_common.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
                                     check_array, check_command, fail, merge_overrides,
                                     wants_help)
-from pam_driver.node_params import usage_text as _usage_text
+from pam_common.node_params import usage_text as _usage_text
 
 __all__ = ['PARAMETERS', 'ConfigError', 'build_config', 'usage_text', 'wants_help']
 

@@ -48,14 +48,14 @@ from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_driver import daq_protocol as proto
-from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
-from pam_driver.node_params import cli_preamble
-from pam_driver.executors import run_node
-from pam_driver.finite_guard import FiniteGuard
-from pam_driver.node_params import declare_parameters
-from pam_driver.throttled_log import ThrottledLogs
-from pam_driver.timing import RateStatistics
+from pam_common.node_params import cli_preamble
+from pam_common.executors import run_node
+from pam_common.finite_guard import FiniteGuard
+from pam_common.node_params import declare_parameters
+from pam_common.throttled_log import ThrottledLogs
+from pam_common.timing import RateStatistics
 
 NODE_NAME = 'driver_node'
 DEFAULT_NAMESPACE = '/pam'

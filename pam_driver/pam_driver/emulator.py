@@ -2,7 +2,7 @@
 
 It speaks the protocol of PROTOCOL.md (pam_driver.daq_protocol) on the master side of a pty and
 simulates the rig with pam_model.rig.SimulatedRig, one model step per sample, paced at 1 kHz by
-absolute deadlines (pam_driver.timing.DeadlineSchedule). The measured values go through the
+absolute deadlines (pam_common.timing.DeadlineSchedule). The measured values go through the
 calibration in reverse (SI -> volts -> ADC counts / encoder counts), the DAC counts of the
 host's COMMAND frames through it forwards (counts -> V).
 
@@ -39,7 +39,7 @@ import time
 import tty
 
 from pam_driver import daq_protocol as proto
-from pam_driver.timing import DeadlineSchedule
+from pam_common.timing import DeadlineSchedule
 
 MAX_PENDING = 65536   # bytes queued for a host that does not read: beyond, dropped
 HOST_SILENCE_STOP = 1.0  # s without host frames: stop streaming

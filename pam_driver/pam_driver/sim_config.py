@@ -2,7 +2,7 @@
 
 No ROS in here: build_config() turns a plain mapping of parameter values into a checked SimConfig
 (the pam_model objects the node wraps) or raises ConfigError with a message that names the
-parameter. The generic parts (ParamSpec, checks, usage text) are pam_driver.node_params, shared
+parameter. The generic parts (ParamSpec, checks, usage text) are pam_common.node_params, shared
 with the other PAM nodes. pam_model is imported lazily so that `sim_node --help` stays instant.
 """
 
@@ -11,11 +11,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from pam_driver.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
+from pam_common.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
                                     check_command, check_state, fail, merge_overrides,
                                     wants_help)
-from pam_driver.node_params import defaults as _defaults
-from pam_driver.node_params import usage_text as _usage_text
+from pam_common.node_params import defaults as _defaults
+from pam_common.node_params import usage_text as _usage_text
 
 __all__ = ['PARAMETERS', 'ConfigError', 'SimConfig', 'U_MAX', 'U_MIN', 'build_config',
            'defaults', 'describe', 'usage_text', 'wants_help']

@@ -29,12 +29,12 @@ more than one period after its deadline is a *late step*. When the thread wakes 
 max_catch_up overdue samples are CAUGHT UP back to back (the plant keeps pace with the wall clock;
 stamps within such a burst are closer than 1/rate), and a longer stall is SKIPPED: the loop jumps
 to the next future deadline and the plant's time slips behind the wall clock by the skipped
-periods (see pam_driver.timing). Either way every published sample is exactly one model step h
+periods (see pam_common.timing). Either way every published sample is exactly one model step h
 after the previous one: consumers should step their models by h, not by stamp differences.
 Late steps, skipped periods, the maximum lateness and the achieved rate (over the last
 diagnostics window) are reported on /diagnostics. Subscriptions and timers are spun by
 rclpy.experimental.EventsExecutor (SingleThreadedExecutor if that is unavailable), in bounded
-slices (see pam_driver.executors).
+slices (see pam_common.executors).
 
 Sample counter (Pressures.sample): k + 1 for the sample after k model steps, in both timings. A
 re-published lockstep sample keeps its counter (a repeat); a realtime period SKIPPED after a
@@ -60,7 +60,7 @@ with the timing, target and achieved rate, late steps, skipped periods, max late
 samples published, last sample counter, commands received, non-finite / out-of-range commands,
 past commands ignored, last command u1/u2 (V, as applied), joint mode and plant set, log lines
 suppressed (the warnings on the sample and command paths are throttled to one a second each, the
-lines left out counted, pam_driver.throttled_log). Level ERROR if the
+lines left out counted, pam_common.throttled_log). Level ERROR if the
 sampling thread failed or a non-finite sample was ever suppressed; WARN if, in the last window,
 bad or past commands arrived, or (realtime) the achieved rate was off by more than 5 % or more
 than 5 % of the samples were late steps; OK otherwise.
@@ -81,13 +81,13 @@ from builtin_interfaces.msg import Time as TimeMsg
 from rosgraph_msgs.msg import Clock
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
-from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_driver.executors import run_node
-from pam_driver.finite_guard import FiniteGuard
-from pam_driver.node_params import cli_preamble, declare_parameters
+from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.executors import run_node
+from pam_common.finite_guard import FiniteGuard
+from pam_common.node_params import cli_preamble, declare_parameters
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
-from pam_driver.throttled_log import ThrottledLogs
-from pam_driver.timing import DeadlineSchedule, RateStatistics
+from pam_common.throttled_log import ThrottledLogs
+from pam_common.timing import DeadlineSchedule, RateStatistics
 
 NODE_NAME = 'sim_node'
 DEFAULT_NAMESPACE = '/pam'

@@ -1,10 +1,10 @@
-"""Fixtures of the pam_driver tests: see pam_driver.testing (shared with the other packages)."""
+"""Fixtures of the pam_driver tests: see pam_common.testing (shared with the other packages)."""
 
 import types
 
 import pytest
 
-from pam_driver.testing import (all_finite, diagnostic_statuses, installed_config,  # noqa: F401
+from pam_common.testing import (all_finite, diagnostic_statuses, installed_config,  # noqa: F401
                                 node_process, probe, ros_context, ros_domain, stamp_ns,
                                 wait_until)
 

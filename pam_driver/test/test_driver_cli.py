@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import subprocess
 
-from pam_driver.testing import child_env, executable
+from pam_common.testing import child_env, executable
 
 
 def _run(name, *args, timeout=30.0):

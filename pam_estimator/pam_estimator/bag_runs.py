@@ -1,6 +1,6 @@
 """A recorded bag as a run for the offline evaluation (pam-evaluate), without rclpy.
 
-From a Jazzy MCAP bag (pam_driver.bags) holding /pam/pressures, /pam/valve_command and
+From a Jazzy MCAP bag (pam_bag.bags) holding /pam/pressures, /pam/valve_command and
 /pam/joint_measured, build the SimulationResult the evaluation reads:
 
 * samples: the pressure messages, ordered by header stamp (a stamp seen again, e.g. a lockstep
@@ -61,7 +61,7 @@ def _decode(contents, store, topic):
 
 def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> BagRun:
     """The run recorded in a bag (see the module doc); BagError / ValueError if it cannot be."""
-    from pam_driver.bags import (BagError, bag_files, check_definitions, load_bag,
+    from pam_bag.bags import (BagError, bag_files, check_definitions, load_bag,
                                  make_typestore)
     topics = [t.replace('/pam', namespace, 1) for t in (PRESSURES, COMMAND, MEASURED)]
     contents = load_bag(path, check_types=False)
@@ -151,7 +151,7 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
     which is what sim_node, profile_player and bag_record write for the same profile. The output
     directory must not exist.
     """
-    from pam_driver.bags import BagWriter
+    from pam_bag.bags import BagWriter
     writer = BagWriter(Path(path))
     store = writer.typestore
     names = {'pressures': f'{namespace}/pressures', 'command': f'{namespace}/valve_command',

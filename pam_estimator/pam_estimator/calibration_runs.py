@@ -25,7 +25,7 @@ def load_record(path) -> CalibrationRecord:
     """One calibration run; ValueError naming the file and what is wrong or missing. A bag's
     samples before its first recorded valve command are left out (the rig's valves were at a
     command the bag does not hold: a driver's safe output, a simulator's initial command)."""
-    from pam_driver.bags import BagError
+    from pam_bag.bags import BagError
     path = Path(path)
     if is_bag(path):
         try:

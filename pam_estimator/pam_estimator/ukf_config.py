@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from pam_driver.node_params import (ConfigError, ParamSpec, check_all, check_array,
+from pam_common.node_params import (ConfigError, ParamSpec, check_all, check_array,
                                     check_command, check_state, fail, merge_overrides,
                                     usage_text as _usage_text)
-from pam_driver.sample_gaps import WARN_RATIO_PARAM
+from pam_common.sample_gaps import WARN_RATIO_PARAM
 
 FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
 FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')

@@ -17,7 +17,7 @@ QoS: reliable, keep last 100 (a 1 kHz stream across processes loses nothing with
 The compiled filter kernel is loaded (and compiled on the very first run) before the
 subscriptions are created, so the first samples are not stalled.
 Warnings on the 1 kHz path (bad commands, unusable samples, time going backwards) are throttled
-to one line a second each (pam_driver.throttled_log), the lines left out counted on /diagnostics.
+to one line a second each (pam_common.throttled_log), the lines left out counted on /diagnostics.
 """
 
 from __future__ import annotations
@@ -31,12 +31,12 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
-from pam_driver.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_driver.executors import run_node
-from pam_driver.finite_guard import FiniteGuard
-from pam_driver.node_params import declare_parameters, wants_help
-from pam_driver.sample_gaps import SampleGaps
-from pam_driver.throttled_log import ThrottledLogs
+from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.executors import run_node
+from pam_common.finite_guard import FiniteGuard
+from pam_common.node_params import declare_parameters, wants_help
+from pam_common.sample_gaps import SampleGaps
+from pam_common.throttled_log import ThrottledLogs
 
 from .estimator_core import EstimatorCore
 from .ukf_config import PARAMETERS, build_config, usage_text

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pam_driver.testing import executable, wait_until
+from pam_common.testing import executable, wait_until
 from pam_estimator.bag_runs import load_bag_run
 from pam_estimator.evaluation import run_ukf
 from pam_model.metrics import metrics
@@ -41,7 +41,7 @@ def test_replayed_bag_into_ukf_node_matches_pam_evaluate(node_process, probe):
                        '-p', f'initial_state:=[{x0}]')
     estimates = probe.subscribe(JointEstimate, '/pam/estimate')
     ukf.wait_for(lambda: 'estimating:' in ukf.stderr + ukf.stdout, 60.0, 'ukf_node start')
-    player = node_process('bag_play', 'pam_driver', '-p', f'bag:={BAG}',
+    player = node_process('bag_play', 'pam_bag', '-p', f'bag:={BAG}',
                           '-p', 'topics:=/pam/pressures,/pam/valve_command', '-p', 'delay:=1.0')
     assert player.wait_exit(400.0) == 0, player.stderr
     n = len(run.t)

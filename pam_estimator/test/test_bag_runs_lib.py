@@ -1,4 +1,4 @@
-"""bag_runs: a bag becomes the run pam-evaluate reads (no ROS: bags written with pam_driver.bags)."""
+"""bag_runs: a bag becomes the run pam-evaluate reads (no ROS: bags written with pam_bag.bags)."""
 
 import subprocess
 from pathlib import Path
@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pam_driver import bags
-from pam_driver.testing import executable
+from pam_bag import bags
+from pam_common.testing import executable
 from pam_estimator.bag_runs import is_bag, load_bag_run, load_run
 
 REFERENCE = Path(__file__).resolve().parents[2] / 'bags'

@@ -22,7 +22,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from pam_driver.testing import child_env, executable
+from pam_common.testing import child_env, executable
 
 TOPICS = '/pam/pressures,/pam/valve_command,/pam/joint_measured'
 LOCK_ANGLES = (-15.0, 15.0)               # deg
@@ -43,9 +43,9 @@ def record(node_process, probe, bag, joint_mode, initial_state, player_args):
     sim = node_process('sim_node', 'pam_driver', '-p', 'mismatch:=mild', '-p', 'timing:=lockstep',
                        '-p', 'lockstep_timeout:=0.05', '-p', f'joint_mode:={joint_mode}',
                        '-p', f'initial_state:=[{state}]')
-    rec = node_process('bag_record', 'pam_driver', '-p', f'output:={bag}', '-p',
+    rec = node_process('bag_record', 'pam_bag', '-p', f'output:={bag}', '-p',
                        f'topics:={TOPICS}', '-p', 'discovery_period:=0.1')
-    player = node_process('profile_player', 'pam_driver', *player_args,
+    player = node_process('profile_player', 'pam_controller', *player_args,
                           '-p', 'wait_for_estimator:=60.0', '-p', 'startup_timeout:=60.0')
     rec.wait_for(lambda: rec.stderr.count('subscribed to /pam/') == 3, 45.0,
                  'bag_record subscribed to the three topics')
@@ -64,7 +64,7 @@ def record(node_process, probe, bag, joint_mode, initial_state, player_args):
 def command_coverage(bag):
     """(valve commands, distinct command stamps, pressure samples from the first to the last
     command's stamp, those of them with a command of the same stamp)."""
-    from pam_driver.bags import load_bag, make_typestore
+    from pam_bag.bags import load_bag, make_typestore
     store = make_typestore()
     contents = load_bag(bag, ['/pam/pressures', '/pam/valve_command'])
     stamps = {t: [] for t in contents.topic_names}
@@ -151,7 +151,7 @@ def test_live_calibration_is_identified(node_process, probe, tmp_path):
     (('-p', 'voltages:=[0.0, 11.0, 5.0]'), 'hold voltages must lie in 0..10 V'),
 ])
 def test_player_rejects_a_bad_calibration_setting(ros_domain, args, message):
-    result = subprocess.run([executable('profile_player', 'pam_driver'), '--ros-args', '-p',
+    result = subprocess.run([executable('profile_player', 'pam_controller'), '--ros-args', '-p',
                              'profile:=calibration_locked', *args], env=child_env(ros_domain),
                             capture_output=True, text=True, timeout=60)
     assert result.returncode != 0

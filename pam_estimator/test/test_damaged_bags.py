@@ -8,7 +8,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from pam_driver.testing import damage_chunk, executable
+from pam_bag.testing import damage_chunk
+from pam_common.testing import executable
 
 BAD_INPUT = 2
 

@@ -2,7 +2,7 @@
 
 import subprocess
 
-from pam_driver.testing import executable, installed_config
+from pam_common.testing import executable, installed_config
 
 
 def run(*args):

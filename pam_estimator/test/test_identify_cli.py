@@ -12,8 +12,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from pam_driver.bags import BagWriter, load_bag
-from pam_driver.testing import executable
+from pam_bag.bags import BagWriter, load_bag
+from pam_common.testing import executable
 from pam_estimator.bag_runs import load_run
 from pam_estimator.evaluation import evaluate
 from pam_estimator.pam_ukf import TUNINGS

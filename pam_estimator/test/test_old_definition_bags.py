@@ -8,8 +8,8 @@ import subprocess
 
 import pytest
 
-from pam_driver.testing import (PRESSURES_BEFORE_SAMPLE_RIHS01, executable,
-                                write_bag_before_sample)
+from pam_bag.testing import PRESSURES_BEFORE_SAMPLE_RIHS01, write_bag_before_sample
+from pam_common.testing import executable
 
 BAD_INPUT = 2
 

@@ -1,4 +1,4 @@
-"""ukf_node's params files and parameter names (pam_driver.params_files, declare_parameters):
+"""ukf_node's params files and parameter names (pam_common.params_files, declare_parameters):
 a malformed or missing params file stops it with exit code 2 and one line on stderr naming the
 file (and the line); an unknown parameter name is a warning naming the closest known one."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from pam_driver.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
+from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
                                 assert_node_refuses_params_file)
 
 

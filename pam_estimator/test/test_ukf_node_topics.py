@@ -8,7 +8,7 @@ import time
 import numpy as np
 from std_srvs.srv import Trigger
 
-from pam_driver.testing import executable, stamp_ns, wait_until
+from pam_common.testing import executable, stamp_ns, wait_until
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 # The demo (sim_node + ukf_node, perfect model, ideal sensor) gives an online angle error of

@@ -14,7 +14,7 @@ from pam_model.identification.campaign import CampaignPlan, simulate_campaign
 from pam_model.profiles import validation_profile
 from pam_model.simulate import simulate
 
-from pam_driver.bags import BagError
+from pam_bag.bags import BagError
 
 from ..bag_runs import write_run_bag
 

@@ -12,7 +12,7 @@ from pam_model.model import PamModel
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
-from pam_driver.bags import BagError
+from pam_bag.bags import BagError
 
 from ..bag_runs import load_run
 from ..evaluation import PAPER_TABLE_III, compare_models, evaluate, format_table, quantity

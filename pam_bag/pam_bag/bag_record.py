@@ -1,0 +1,244 @@
+"""bag_record: records topics into a Jazzy rosbag2 MCAP bag (a `ros2 bag record` stand-in).
+
+Subscribes raw (the CDR bytes, never deserialised) to every topic under the chosen prefixes
+(default: everything under /pam plus /diagnostics), or to an explicit topic list, discovering
+topics as they appear, and writes each message with its receive time (ns since the epoch) through
+pam_bag.bags (metadata.yaml v9, MCAP, zstd chunks; optionally split into several files by
+size or duration, as `ros2 bag record -b/-d`). The subscriptions only queue the bytes; a
+writer thread writes them, so a slow disk does not delay the callbacks.
+
+Ctrl-C / SIGTERM (or `duration` elapsed) closes the bag cleanly. An existing output directory is
+refused. A write error stops the recording: the bag is truncated to its last complete chunk and
+closed readable, the error is printed, and the exit code is 1. On a crash (SIGKILL, power loss)
+the .mcap holds every chunk written so far (at most `chunk_interval` of data is lost) but has no
+summary and there is no metadata.yaml.
+"""
+
+from __future__ import annotations
+
+import collections
+import datetime
+import sys
+import threading
+import time
+
+from rclpy.node import Node
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.task import Future
+
+from pam_bag.bags import (BagError, BagWriteError, BagWriter, check_split, known_type,
+                             qos_from_ints)
+from pam_common.executors import run_node
+from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
+                                    merge_overrides, usage_text, wants_help)
+
+NODE_NAME = 'bag_record'
+SUB_DEPTH = 1000
+
+PARAMETERS = (
+    ParamSpec('output', '', 'string', '',
+              "Bag directory to create (never overwritten); '': rosbag2_YYYY_MM_DD-HH_MM_SS."),
+    ParamSpec('topics', '', 'string', '',
+              "Comma-separated topics to record; '': every topic under `prefixes`."),
+    ParamSpec('prefixes', '/pam,/diagnostics', 'string', '',
+              'Comma-separated namespaces (or exact topics) recorded when `topics` is empty.'),
+    ParamSpec('compression', 'zstd', 'string', '', 'Chunk compression.',
+              choices=('zstd', 'none')),
+    ParamSpec('chunk_interval', 1.0, 'double', 's',
+              'Longest time before received messages are written to disk (what a crash loses).',
+              range=(0.05, 60.0)),
+    ParamSpec('max_bag_size', 0, 'integer', 'B',
+              'Split the bag into files <output>_0.mcap, _1, ... of at most this size (plus a '
+              'few kB of summary each), as `ros2 bag record -b`; 0: one file; else >= 100000.',
+              range=(0, 2**62)),
+    ParamSpec('max_bag_duration', 0.0, 'double', 's',
+              'Split the bag into files of at most this span of receive times, as '
+              '`ros2 bag record -d`; 0: no split by time; else >= 1.', range=(0.0, 1e7)),
+    ParamSpec('discovery_period', 0.5, 'double', 's', 'How often to look for new topics.',
+              range=(0.05, 10.0)),
+    ParamSpec('duration', 0.0, 'double', 's', 'Stop after this long; 0: until Ctrl-C/SIGTERM.',
+              range=(0.0, 1e7)),
+)
+
+SUMMARY = [
+    'Records topics (raw CDR, receive-time stamps) into a ROS 2 Jazzy rosbag2 bag directory:',
+    'metadata.yaml version 9 + zstd-chunked MCAP file(s), as `ros2 bag record -s mcap` writes',
+    '(one file, or split by max_bag_size / max_bag_duration).',
+    'Stop with Ctrl-C or SIGTERM.',
+]
+
+
+def split_list(text: str) -> list[str]:
+    return [t.strip() for t in text.split(',') if t.strip()]
+
+
+def message_class(msgtype: str):
+    """The rclpy message class of 'pkg/msg/Type'; None if its package is not installed."""
+    import importlib
+    try:
+        package, kind, name = msgtype.split('/')
+        return getattr(importlib.import_module(f'{package}.{kind}'), name)
+    except (ValueError, ImportError, AttributeError):
+        return None
+
+
+def _duration_pair(duration) -> tuple[int, int]:
+    ns = int(getattr(duration, 'nanoseconds', 0))
+    return (ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+class BagRecorder(Node):
+    """Discovers topics, subscribes raw, queues (topic, t_ns, bytes) for the writer thread."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
+                                                       declare_parameters(self, PARAMETERS)))
+        self.values = values
+        output = values['output'] or datetime.datetime.now().strftime(
+            'rosbag2_%Y_%m_%d-%H_%M_%S')
+        self.explicit = split_list(values['topics'])
+        self.prefixes = split_list(values['prefixes'])
+        try:
+            check_split(values['max_bag_size'], values['max_bag_duration'])
+        except BagError as exc:
+            raise ConfigError(f'parameter {exc}') from exc
+        try:
+            self.bag = BagWriter(output, compression=values['compression'],
+                                 chunk_interval=values['chunk_interval'],
+                                 max_bag_size=values['max_bag_size'],
+                                 max_bag_duration=values['max_bag_duration'])
+        except BagError as exc:
+            raise ConfigError(f"parameter 'output': {exc}") from exc
+        self.finished = Future()
+        self.queue: collections.deque = collections.deque()
+        self.received = 0
+        self.subscriptions_by_topic: dict[str, object] = {}
+        self.skipped: set[str] = set()
+        self._stop = threading.Event()
+        self._writer = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
+        self._writer.start()
+        self._discover()
+        self.create_timer(values['discovery_period'], self._discover)
+        if values['duration'] > 0.0:
+            self._stop_timer = self.create_timer(values['duration'], self._on_duration)
+        what = ', '.join(self.explicit) if self.explicit else (
+            'everything under ' + ', '.join(self.prefixes))
+        self.get_logger().info(f'recording {what} into {self.bag.path}')
+
+    # ---------------------------------------------------------------- topics
+    def _wanted(self, topic: str) -> bool:
+        if self.explicit:
+            return topic in self.explicit
+        return any(topic == p or topic.startswith(p.rstrip('/') + '/') for p in self.prefixes)
+
+    def _discover(self) -> None:
+        if self.finished.done():
+            return
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subscriptions_by_topic or topic in self.skipped:
+                continue
+            if not self._wanted(topic):
+                continue
+            msgtype = types[0]
+            cls = message_class(msgtype)
+            if len(types) > 1 or cls is None or not known_type(self.bag.typestore, msgtype):
+                self.skipped.add(topic)
+                self.get_logger().warn(f'not recording {topic}: type {", ".join(types)} '
+                                       'unknown here or ambiguous')
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue
+            offered = [qos_from_ints(p.qos_profile.history.value, p.qos_profile.depth,
+                                     p.qos_profile.reliability.value,
+                                     p.qos_profile.durability.value,
+                                     p.qos_profile.liveliness.value,
+                                     _duration_pair(p.qos_profile.deadline),
+                                     _duration_pair(p.qos_profile.lifespan),
+                                     _duration_pair(p.qos_profile.liveliness_lease_duration))
+                       for p in publishers]
+            reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                           for p in publishers)
+            latched = all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                          for p in publishers)
+            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SUB_DEPTH,
+                             reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                          else ReliabilityPolicy.BEST_EFFORT),
+                             durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                         else DurabilityPolicy.VOLATILE))
+            try:
+                self.bag.add_topic(topic, msgtype, offered)
+            except BagError as exc:
+                self.skipped.add(topic)
+                self.get_logger().warn(f'not recording {topic}: {exc}')
+                continue
+            queue, clock = self.queue, time.time_ns
+
+            def on_message(data, topic=topic):
+                queue.append((topic, clock(), data))
+            self.subscriptions_by_topic[topic] = self.create_subscription(
+                cls, topic, on_message, qos, raw=True)
+            self.get_logger().info(f'subscribed to {topic} ({msgtype})')
+
+    def _on_duration(self) -> None:
+        self.destroy_timer(self._stop_timer)
+        if not self.finished.done():
+            self.finished.set_result(0)
+
+    # ---------------------------------------------------------------- writing
+    def _write_loop(self) -> None:
+        queue, bag = self.queue, self.bag
+        while True:
+            try:
+                while queue:
+                    topic, t_ns, data = queue.popleft()
+                    bag.write(topic, t_ns, data)
+            except BagWriteError as exc:
+                self.write_error = exc
+                if not self.finished.done():
+                    self.finished.set_result(1)
+                return
+            if self._stop.is_set() and not queue:
+                return
+            time.sleep(0.005)
+
+    def finish(self) -> int:
+        """Stop the subscriptions, write what is queued, close the bag; the exit code."""
+        for sub in list(self.subscriptions_by_topic.values()):
+            self.destroy_subscription(sub)
+        self._stop.set()
+        self._writer.join()
+        code = 0
+        error = getattr(self, 'write_error', None)
+        try:
+            self.bag.close()
+        except BagError as exc:
+            error = error or exc
+        if error is not None:
+            print(f'[{NODE_NAME}] error: {error}; recording stopped, the bag holds what was '
+                  f'written before the error', file=sys.stderr, flush=True)
+            code = 1
+        counts = self.bag.counts()
+        files = len(self.bag.files)
+        print(f'[{NODE_NAME}] wrote {sum(counts.values())} messages on {len(counts)} topics '
+              f'to {self.bag.path}' + (f' ({files} files)' if files > 1 else ''), flush=True)
+        for topic, n in sorted(counts.items()):
+            print(f'  {topic}: {n}', flush=True)
+        return code
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+            f'{NODE_NAME} --ros-args -p output:=out/run1',
+            f"{NODE_NAME} --ros-args -p output:=out/run2 -p topics:=/pam/pressures,/pam/estimate",
+            f'{NODE_NAME} --ros-args -p output:=out/run3 -p max_bag_size:=4000000',
+        ]))
+        return 0
+    return run_node(BagRecorder, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,182 @@
+"""tracking_report: records a closed-loop run from the topics and reports it (the main job's end).
+
+Subscribes reference, joint_measured (the true angle/torque of the simulated rig, or the
+encoder/torque meter of a real one), estimate and valve_command for `duration` seconds, then
+prints per reference step: the reference, the steady-state error against the MEASURED value (%
+of the paper's 40 deg / 4 N m range), the settling time; the estimation error I / M / Q; and
+writes a PNG like the paper's Fig. 14 (reference, measured, estimate; valve voltages; errors).
+Run `tracking_report --help`.
+"""
+
+from __future__ import annotations
+
+import sys
+from bisect import bisect_right
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
+
+from pam_common.executors import run_node
+from pam_common.node_params import (ParamSpec, check_all, declare_parameters,
+                                    merge_overrides, usage_text, wants_help)
+from pam_controller.run_recorder import stamp_ns
+
+from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
+
+NODE_NAME = 'tracking_report'
+QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                 depth=100)
+PARAMETERS = (
+    ParamSpec('duration', 64.0, 'double', 's', 'How long to record after the first reference.',
+              range=(1.0, 86400.0)),
+    ParamSpec('plot', '', 'string', '', "PNG path for the figure; '': no figure."),
+    ParamSpec('startup_timeout', 120.0, 'double', 's',
+              'Give up if no reference and measurement arrive within this time.',
+              range=(1.0, 3600.0)),
+)
+SUMMARY = ['Closed-loop tracking report (pam_controller): records reference, joint_measured,',
+           'estimate and valve_command, then prints per-step metrics and writes a PNG.',
+           "Default namespace '/pam'."]
+
+
+class TrackingReport(Node):
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', '/pam')
+        super().__init__(NODE_NAME, **kwargs)
+        self.values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
+                                                            declare_parameters(self, PARAMETERS)))
+        self.references = []        # (stamp ns, mode, value), in arrival order
+        self.truth = {}             # stamp -> (angle, torque)
+        self.estimates = {}         # stamp -> (angle, torque)
+        self.commands = {}          # stamp -> (u1, u2)
+        self.first_ns = None
+        self.finished = Future()
+        self.create_subscription(Reference, 'reference', self._on_reference, QOS)
+        self.create_subscription(JointMeasurement, 'joint_measured', self._on_truth, QOS)
+        self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
+        self.create_subscription(ValveCommand, 'valve_command', self._on_command, QOS)
+        self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
+        self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
+                               'first reference')
+
+    def _on_timeout(self):
+        self.destroy_timer(self._timeout)
+        if self.first_ns is None and not self.finished.done():
+            self.get_logger().error('no reference and measurement arrived: is the stack up?')
+            self.finished.set_result(1)
+
+    def _on_reference(self, msg: Reference):
+        self.references.append((stamp_ns(msg.header.stamp), msg.mode, msg.value))
+
+    def _on_truth(self, msg: JointMeasurement):
+        t = stamp_ns(msg.header.stamp)
+        if not self.references:
+            return
+        if self.first_ns is None:
+            self.first_ns = t
+        self.truth[t] = (msg.angle, msg.torque)
+        if (t - self.first_ns) * 1e-9 >= self.values['duration'] and not self.finished.done():
+            self.finished.set_result(0)
+
+    def _on_estimate(self, msg: JointEstimate):
+        self.estimates[stamp_ns(msg.header.stamp)] = (msg.angle, msg.torque)
+
+    def _on_command(self, msg: ValveCommand):
+        self.commands[stamp_ns(msg.header.stamp)] = (msg.u1, msg.u2)
+
+    def series(self):
+        """t (s), mode, reference, measured, estimate (nan where missing), commands (N, 2)."""
+        stamps = np.array(sorted(self.truth))
+        refs = sorted(self.references)
+        ref_stamps = [r[0] for r in refs]
+        mode = refs[-1][1]
+        index = [max(bisect_right(ref_stamps, s) - 1, 0) for s in stamps]
+        reference = np.array([refs[i][2] for i in index])
+        column = 0 if mode == Reference.ANGLE else 1
+        measured = np.array([self.truth[s][column] for s in stamps])
+        estimate = np.array([self.estimates.get(s, (np.nan, np.nan))[column] for s in stamps])
+        commands = np.array([self.commands.get(s, (np.nan, np.nan)) for s in stamps])
+        return (stamps - stamps[0]) * 1e-9, mode, reference, measured, estimate, commands
+
+    def finish(self) -> int:
+        """Exit code: the report's, or why there is none."""
+        if self.finished.done() and self.finished.result() != 0:
+            return self.finished.result()
+        if self.first_ns is None:
+            return 130                      # interrupted before anything was recorded
+        return self.report(interrupted=not self.finished.done())
+
+    def report(self, interrupted: bool = False) -> int:
+        """Print the report; exit code 0, or 1 (130 if interrupted) when there is nothing to
+        report: too few samples, or no reference held long enough to be a step."""
+        from pam_model.metrics import metrics
+        nothing = 130 if interrupted else 1
+        if len(self.truth) < 100:
+            print('tracking_report: too few samples recorded', flush=True)
+            return nothing
+        t, mode, reference, measured, estimate, commands = self.series()
+        angle = mode == Reference.ANGLE
+        span, scale, unit = (ANGLE_SPAN, np.degrees(1.0), 'deg') if angle else (TORQUE_SPAN, 1.0,
+                                                                                 'Nm')
+        report = step_report(t, reference, measured, span, 2.0)
+        if not report.steps:
+            print(f'tracking_report: {t[-1]:.1f} s recorded, but no reference was held 2 s or '
+                  'more: no step to report', flush=True)
+            return nothing
+        rate = (len(t) - 1) / max(t[-1], 1e-9)
+        print(f'tracking report: {"angle" if angle else "torque"} mode, {t[-1]:.1f} s, '
+              f'{len(t)} samples ({rate:.0f} Hz); errors against the measured value, % of the '
+              f'{span * scale:.0f} {unit} range', flush=True)
+        for line in report.lines(scale, unit):
+            print('  ' + line, flush=True)
+        ok = ~np.isnan(estimate)
+        if ok.sum() > 1:
+            m = metrics(measured[ok] * scale, estimate[ok] * scale)
+            print(f'  estimation error ({ok.sum()} samples): {m.row(" " + unit)}', flush=True)
+        if self.values['plot']:
+            path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
+                                 commands, unit, self.values['plot'])
+            print(f'  figure: {path}', flush=True)
+        return 0
+
+
+def plot_tracking(t, reference, measured, estimate, commands, unit, path):
+    """The paper's Fig. 14 layout: tracking, valve voltages, errors."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    axes[0].plot(t, reference, 'k--', lw=1.0, label='reference')
+    axes[0].plot(t, measured, color='tab:blue', lw=1.0, label='measured')
+    axes[0].plot(t, estimate, color='tab:green', lw=0.8, label='UKF estimate (feedback)')
+    axes[0].set_ylabel(f'angle/torque ({unit})')
+    axes[0].legend(loc='upper right', fontsize=8)
+    axes[1].plot(t, commands[:, 0], color='tab:blue', lw=0.7, label='u1')
+    axes[1].plot(t, commands[:, 1], color='tab:red', lw=0.7, label='u2')
+    axes[1].set_ylabel('valve voltage (V)')
+    axes[1].legend(loc='upper right', fontsize=8)
+    axes[2].plot(t, reference - measured, color='tab:blue', lw=0.8, label='reference - measured')
+    axes[2].plot(t, measured - estimate, color='tab:green', lw=0.8, label='measured - estimate')
+    axes[2].axhline(0.0, color='0.5', lw=0.5)
+    axes[2].set_ylabel(f'error ({unit})')
+    axes[2].set_xlabel('time (s)')
+    axes[2].legend(loc='upper right', fontsize=8)
+    fig.suptitle('Sensor-less PI tracking on the simulated rig')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main(args=None) -> int:
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS))
+        return 0
+    return run_node(TrackingReport, NODE_NAME, args)
+
+if __name__ == '__main__':
+    sys.exit(main())
