@@ -25,6 +25,7 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 import rclpy  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from pam_common.stamps import ns_stamp  # noqa: E402
 from pam_interfaces.msg import (JointEstimate, JointMeasurement, Pressures,  # noqa: E402
                                 ValveCommand)
 
@@ -59,7 +60,7 @@ def main() -> int:
         if delay > 0:
             time.sleep(delay)
         for pub, msg in zip(pubs, msgs):
-            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * 1_000_000, 10**9)
+            msg.header.stamp = ns_stamp(k * 1_000_000)
             if hasattr(msg, 'sample'):
                 msg.sample = k
             pub.publish(msg)

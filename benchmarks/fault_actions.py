@@ -15,7 +15,8 @@ from typing import NamedTuple
 from fault_inputs import (Feed, Parameters, command_message, copy_bag, lockstep_command)
 from fault_stack import maps_holds, run_tool
 from pam_common.sample_gaps import SampleGaps
-from pam_common.testing import NodeProcess, malformed_params_file, stamp_ns, wait_until
+from pam_common.stamps import stamp_ns
+from pam_common.testing import NodeProcess, malformed_params_file, wait_until
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 

@@ -10,7 +10,8 @@ import math
 from dataclasses import dataclass
 
 from fault_inputs import unanswered
-from pam_common.testing import stamp_ns, wait_until
+from pam_common.stamps import stamp_ns
+from pam_common.testing import wait_until
 
 
 @dataclass

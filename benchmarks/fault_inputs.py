@@ -17,7 +17,8 @@ import struct
 import time
 from pathlib import Path
 
-from pam_common.testing import stamp_ns, wait_until
+from pam_common.stamps import ns_stamp, stamp_ns
+from pam_common.testing import wait_until
 
 NAN, INF = math.nan, math.inf
 HUGE = 1e300          # finite, far outside every physical range
@@ -26,7 +27,7 @@ PAST_NS = 10_000_000_000
 
 
 def set_stamp(header, ns: int) -> None:
-    header.stamp.sec, header.stamp.nanosec = divmod(int(ns), 1_000_000_000)
+    header.stamp = ns_stamp(ns)
 
 
 class Feed:

@@ -23,8 +23,8 @@ from rclpy.context import Context
 
 from pam_common.diagnostics import status_values
 from pam_common.sample_gaps import SampleGaps, loss_summary
-from pam_common.testing import (NodeProcess, Probe, child_env, diagnostic_statuses, stamp_ns,
-                                wait_until)
+from pam_common.stamps import stamp_ns
+from pam_common.testing import NodeProcess, Probe, child_env, diagnostic_statuses, wait_until
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 

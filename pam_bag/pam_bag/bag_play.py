@@ -41,6 +41,7 @@ from rclpy.task import Future
 from pam_bag.bag_record import message_class, split_list
 from pam_bag.bags import EXIT_BAD_INPUT, BagError, open_bag
 from pam_common.executors import run_node
+from pam_common.stamps import ns_pair
 from pam_bag.read_ahead import END, ReadAhead
 from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
@@ -194,7 +195,7 @@ class BagPlayer(Node):
 
     def _publish_clock(self, bag_ns: int) -> None:
         msg = self._clock_msg()
-        msg.clock.sec, msg.clock.nanosec = divmod(int(bag_ns), 1_000_000_000)
+        msg.clock.sec, msg.clock.nanosec = ns_pair(bag_ns)
         self.clock_pub.publish(msg)
 
     def _wait_for_subscribers(self) -> None:

@@ -29,6 +29,7 @@ from rclpy.task import Future
 from pam_bag.bags import (BagError, BagWriteError, BagWriter, check_split, known_type,
                              qos_from_ints)
 from pam_common.executors import run_node
+from pam_common.stamps import ns_pair
 from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 
@@ -83,8 +84,7 @@ def message_class(msgtype: str):
 
 
 def _duration_pair(duration) -> tuple[int, int]:
-    ns = int(getattr(duration, 'nanoseconds', 0))
-    return (ns // 1_000_000_000, ns % 1_000_000_000)
+    return ns_pair(getattr(duration, 'nanoseconds', 0))
 
 
 class BagRecorder(Node):

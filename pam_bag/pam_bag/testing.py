@@ -6,6 +6,8 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
+from pam_common.stamps import ns_pair
+
 
 def damage_chunk(mcap, index: int, nbytes: int = 8) -> int:
     """Flip `nbytes` bytes (in place) inside the compressed records of chunk `index` of the
@@ -80,8 +82,8 @@ def write_bag_before_sample(path, samples: int = 100, labelled_as_now: bool = Fa
     try:
         for k in range(samples):
             t_ns = 1_700_000_000_000_000_000 + k * 1_000_000
-            header = Header(stamp=Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000),
-                            frame_id='pam_joint')
+            sec, nanosec = ns_pair(t_ns)
+            header = Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id='pam_joint')
             for topic, msgtype in types.items():
                 msg = store.types[msgtype](header=header, **fields[topic])
                 writer.write(topic, t_ns, store.serialize_cdr(msg, msgtype))

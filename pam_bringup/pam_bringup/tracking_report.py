@@ -22,7 +22,7 @@ from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, Valve
 from pam_common.executors import run_node
 from pam_common.node_params import (ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
-from pam_controller.run_recorder import stamp_ns
+from pam_common.stamps import stamp_ns
 
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
 

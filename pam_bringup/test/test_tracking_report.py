@@ -4,6 +4,7 @@ ValueError from max() of no steps)."""
 
 import time
 
+from pam_common.stamps import ns_stamp
 from pam_common.testing import wait_until
 from pam_interfaces.msg import JointMeasurement, Reference
 
@@ -20,7 +21,7 @@ def test_a_run_without_a_complete_step_reports_so(node_process, probe):
         if k % 100 == 0:
             references.publish(Reference(mode=Reference.ANGLE, value=0.1))
         msg = JointMeasurement(angle=0.05)
-        msg.header.stamp.sec, msg.header.stamp.nanosec = 1 + k // 1000, (k % 1000) * 1_000_000
+        msg.header.stamp = ns_stamp(1_000_000_000 + k * 1_000_000)
         truth.publish(msg)
         k += 1
         time.sleep(0.0005)

@@ -1,9 +1,12 @@
 """Message stamps (builtin_interfaces/Time) to and from integer nanoseconds: the one place the
-stack converts them (every node, tool and test uses these)."""
+stack converts them (every node, tool and test uses these; pam_common/test/test_layout.py fails
+on a conversion written anywhere else).
+
+stamp_ns reads anything with `sec` and `nanosec` (an rclpy message, a rosbags message); only
+ns_stamp imports ROS (builtin_interfaces), so tools that read bags without rclpy can use the rest.
+"""
 
 from __future__ import annotations
-
-from builtin_interfaces.msg import Time
 
 NS_PER_S = 1_000_000_000
 
@@ -13,7 +16,14 @@ def stamp_ns(stamp) -> int:
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
-def ns_stamp(ns: int) -> Time:
+def ns_pair(ns) -> tuple[int, int]:
+    """ns (an int, or a float: truncated to whole ns) as (sec, nanosec), 0 <= nanosec < 1e9:
+    the fields of a builtin_interfaces/Time or Duration."""
+    return divmod(int(ns), NS_PER_S)
+
+
+def ns_stamp(ns):
     """ns since the epoch (>= 0) as a builtin_interfaces/Time."""
-    sec, nanosec = divmod(int(ns), NS_PER_S)
+    from builtin_interfaces.msg import Time
+    sec, nanosec = ns_pair(ns)
     return Time(sec=sec, nanosec=nanosec)

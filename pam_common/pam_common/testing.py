@@ -32,6 +32,7 @@ from pathlib import Path
 import pytest
 
 from pam_common.executables import executable_candidates, find_executable
+from pam_common.stamps import stamp_ns  # noqa: F401 - the tests import it from here too
 
 #: The project venv when running from a source checkout (make setup); None on a colcon install.
 VENV = Path(sys.prefix) if (Path(sys.prefix) / 'pyvenv.cfg').exists() else None
@@ -69,10 +70,6 @@ def wait_until(predicate, timeout: float, period: float = 0.01) -> bool:
             return True
         time.sleep(period)
     return bool(predicate())
-
-
-def stamp_ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 # ---------------------------------------------------------------------------- processes

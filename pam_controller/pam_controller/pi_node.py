@@ -40,6 +40,7 @@ from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import (ConfigError, ParamSpec, check_all, check_command,
                                     declare_parameters, merge_overrides, usage_text, wants_help)
 from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
+from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
@@ -179,7 +180,7 @@ class PiNode(Node):
         if self._stale:
             self._stale = False
             self.get_logger().info('feedback is back: control resumed')
-        out = self.loop.on_feedback(value, header.stamp.sec * 1_000_000_000 + header.stamp.nanosec)
+        out = self.loop.on_feedback(value, stamp_ns(header.stamp))
         self._publish(out, header.stamp, value)
 
     def _publish(self, out, stamp, feedback: float) -> None:

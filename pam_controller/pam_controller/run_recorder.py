@@ -1,4 +1,4 @@
-"""RunRecorder: collects a run from timestamped messages (no ROS in here) and summarises it.
+"""RunRecorder: collects a run from timestamped messages (no node, no topics) and summarises it.
 
 Samples are keyed by their stamp (ns): ground truth and estimates are matched to the pressure
 sample with the same stamp, whatever order they arrive in.
@@ -8,10 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def stamp_ns(stamp) -> int:
-    """A builtin_interfaces/Time (or anything with sec, nanosec) in ns."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+from pam_common.stamps import stamp_ns
 
 
 class RunRecorder:

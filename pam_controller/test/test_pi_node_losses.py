@@ -6,6 +6,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
 from pam_common.diagnostics import status_values
+from pam_common.stamps import ns_stamp
 from pam_common.testing import diagnostic_statuses, wait_until
 from pam_interfaces.msg import JointEstimate
 
@@ -19,7 +20,7 @@ def test_gaps_in_the_estimates_sample_counter_are_reported(node_process, probe):
     def publish(sample):
         msg = JointEstimate(sample=sample)
         t = 1.0 + 0.001 * (sample - 1)
-        msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round(t % 1 * 1e9))
+        msg.header.stamp = ns_stamp(round(t * 1e9))
         estimates.publish(msg)
 
     def commands_published():

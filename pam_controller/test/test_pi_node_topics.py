@@ -12,6 +12,7 @@ from rcl_interfaces.srv import SetParameters
 from std_srvs.srv import SetBool
 
 from pam_common.diagnostics import WARN, status_values
+from pam_common.stamps import ns_stamp
 from pam_common.testing import diagnostic_statuses, wait_until
 from pam_interfaces.msg import ControllerState, JointEstimate, Reference, ValveCommand
 
@@ -45,7 +46,7 @@ def start_pi_node(node_process, probe, *params):
         for k in range(n):
             msg = JointEstimate(angle=angle, torque=torque)
             t = start + k * 0.001
-            msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round(t % 1 * 1e9))
+            msg.header.stamp = ns_stamp(round(t * 1e9))
             estimates.publish(msg)
             time.sleep(0.001)
     return pi, commands, states, diagnostics, references, feed

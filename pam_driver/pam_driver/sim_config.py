@@ -3,7 +3,8 @@
 No ROS in here: build_config() turns a plain mapping of parameter values into a checked SimConfig
 (the pam_model objects the node wraps) or raises ConfigError with a message that names the
 parameter. The generic parts (ParamSpec, checks, usage text) are pam_common.node_params, shared
-with the other PAM nodes. pam_model is imported lazily so that `sim_node --help` stays instant.
+with the other PAM nodes. Only pam_model.model_choices (standard library only) is imported up
+front; the rest of pam_model lazily, so that `sim_node --help` stays instant.
 """
 
 from __future__ import annotations
@@ -16,14 +17,13 @@ from pam_common.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_
                                     wants_help)
 from pam_common.node_params import defaults as _defaults
 from pam_common.node_params import usage_text as _usage_text
+from pam_model.model_choices import ForceModel, FrictionLaw
 
 __all__ = ['PARAMETERS', 'ConfigError', 'SimConfig', 'U_MAX', 'U_MIN', 'build_config',
            'defaults', 'describe', 'usage_text', 'wants_help']
 
-#: Choices of the string parameters. The law names are pam_model.physics.FRICTION_LAWS and
-#: FORCE_MODELS (a unit test checks they agree).
-FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
-FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')
+#: Choices of the string parameters (friction_law and force_model: the names of FrictionLaw and
+#: ForceModel).
 JOINT_MODES = ('free', 'locked')
 TIMINGS = ('realtime', 'lockstep')
 
@@ -47,10 +47,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('valve_map', 'default', 'string', '',
               "Valve map kappa(u) of the plant: 'default' (shipped table) or the path of a "
               'voltage_V,alpha CSV file.'),
-    ParamSpec('friction_law', 'proposed', 'string', '',
-              'Friction law of the plant.', choices=FRICTION_LAWS),
-    ParamSpec('force_model', 'proposed', 'string', '',
-              'Muscle force model of the plant.', choices=FORCE_MODELS),
+    ParamSpec('friction_law', str(FrictionLaw.PROPOSED), 'string', '',
+              'Friction law of the plant.', choices=FrictionLaw.names()),
+    ParamSpec('force_model', str(ForceModel.PROPOSED), 'string', '',
+              'Muscle force model of the plant.', choices=ForceModel.names()),
     ParamSpec('joint_mode', 'free', 'string', '',
               "'free' joint, or 'locked' at its initial angle (torque experiments: the torque "
               'meter holds the joint).', choices=JOINT_MODES),

@@ -77,7 +77,6 @@ import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from builtin_interfaces.msg import Time as TimeMsg
 from rosgraph_msgs.msg import Clock
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
@@ -85,6 +84,7 @@ from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import cli_preamble, declare_parameters
+from pam_common.stamps import ns_stamp, stamp_ns
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
@@ -101,13 +101,6 @@ SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryP
                         depth=100, durability=DurabilityPolicy.VOLATILE)
 CLOCK_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                        depth=10)
-
-def _stamp_ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def _time_msg(ns: int) -> TimeMsg:
-    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class SimNode(Node):
@@ -208,7 +201,7 @@ class SimNode(Node):
     def _lockstep_stamp(self, k: int) -> int:
         return round(k * self._period_ns)
 
-    def _take_sample(self, stamp_ns: int):
+    def _take_sample(self, t_ns: int):
         """Read the rig (draws sensor noise) into messages; None if the state is not finite.
 
         Call with _lock held."""
@@ -220,7 +213,7 @@ class SimNode(Node):
             self._log_nonfinite(f'non-finite sample at step {self._rig.k} suppressed: state '
                                 f'{list(sample.x)}')
             return None
-        stamp = _time_msg(stamp_ns)
+        stamp = ns_stamp(t_ns)
         pressures = Pressures()
         pressures.header.stamp = stamp
         pressures.header.frame_id = self._frame_id
@@ -258,12 +251,12 @@ class SimNode(Node):
                 if delay > 0.0:
                     time.sleep(delay)
                 now = time.monotonic()
-                stamp_ns = clock.now().nanoseconds
+                t_ns = clock.now().nanoseconds
                 with self._lock:
                     if not first:
                         self._rig.step()
                     first = False
-                    messages = self._take_sample(stamp_ns)
+                    messages = self._take_sample(t_ns)
                 self._publish(messages)
                 lateness = schedule.lateness(now)
                 skipped = schedule.advance(now)
@@ -281,7 +274,7 @@ class SimNode(Node):
             self._commands_received += 1
             self._last_raw_command = (msg.u1, msg.u2)
             if self._lockstep:
-                stamp = _stamp_ns(msg.header.stamp)
+                stamp = stamp_ns(msg.header.stamp)
                 t_k = self._lockstep_stamp(self._rig.k)
                 if stamp != 0 and stamp < t_k:
                     self._past_commands += 1

@@ -8,6 +8,8 @@ import threading
 from diagnostic_msgs.msg import DiagnosticArray
 from pam_interfaces.msg import Pressures, ValveCommand
 
+from pam_common.stamps import ns_stamp
+
 STEPS = 400
 H_NS = 1_000_000          # ns, model step at the default 1 kHz
 STARTUP = 45.0            # s
@@ -90,7 +92,7 @@ def test_lockstep_ignores_commands_from_the_past(sim_node, probe, helpers):
 
     def send(stamp_ns: int):
         msg = ValveCommand()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        msg.header.stamp = ns_stamp(stamp_ns)
         msg.u1 = msg.u2 = 5.5
         command.publish(msg)
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pam_common.stamps import ns_pair, stamp_ns
 from pam_model.simulate import SimulationResult
 
 PRESSURES = '/pam/pressures'
@@ -50,13 +51,9 @@ def is_bag(path) -> bool:
     return (path.is_dir() and (path / 'metadata.yaml').is_file()) or path.suffix == '.mcap'
 
 
-def _stamp(msg) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
-
-
 def _decode(contents, store, topic):
     """[(stamp_ns, message)] of one topic, in receive order; BagError if one is unreadable."""
-    return [(_stamp(msg), msg) for _, msg in contents.deserialized(topic, store)]
+    return [(stamp_ns(msg.header.stamp), msg) for _, msg in contents.deserialized(topic, store)]
 
 
 def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> BagRun:
@@ -167,8 +164,8 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
     stamps = start_ns + np.round(np.asarray(run.t) * 1e9).astype(np.int64)
     try:
         for k, stamp in enumerate(stamps.tolist()):
-            header = Header(stamp=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
-                            frame_id=frame_id)
+            sec, nanosec = ns_pair(stamp)
+            header = Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame_id)
             rows = {
                 'pressures': classes['pressures'](header=header, p1=float(run.p_measured[k, 0]),
                                                   p2=float(run.p_measured[k, 1]), sample=k + 1),

@@ -14,7 +14,7 @@ import numpy as np
 
 from pam_model.metrics import Metrics, metrics
 from pam_model.model import PamModel
-from pam_model.physics import FORCE_MODELS, FRICTION_LAWS
+from pam_model.model_choices import ForceModel, FrictionLaw
 from pam_model.simulate import SimulationResult, simulate
 
 from .pam_ukf import DEFAULT_TUNING, PamUkf, UkfTuning
@@ -87,14 +87,15 @@ def evaluate(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT
 def compare_models(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING):
     """The UKF with each friction law (Table III) and each force model: {label: Metrics}."""
     results = {}
-    for friction in FRICTION_LAWS:
+    for friction in FrictionLaw:
         variant = PamModel(params=model.params, valve_map=model.valve_map, friction=friction,
-                           force='proposed', locked=run.locked, h=model.h)
+                           force=ForceModel.PROPOSED, locked=run.locked, h=model.h)
         results[f'friction {friction}'] = metrics(
             *measured_and_estimated(run, run_ukf(run, variant, tuning)))
-    for force in FORCE_MODELS[1:]:
-        variant = PamModel(params=model.params, valve_map=model.valve_map, friction='proposed',
-                           force=force, locked=run.locked, h=model.h)
+    for force in (f for f in ForceModel if f is not ForceModel.PROPOSED):
+        variant = PamModel(params=model.params, valve_map=model.valve_map,
+                           friction=FrictionLaw.PROPOSED, force=force, locked=run.locked,
+                           h=model.h)
         results[f'force {force}'] = metrics(
             *measured_and_estimated(run, run_ukf(run, variant, tuning)))
     return results

@@ -9,9 +9,8 @@ from pam_common.node_params import (ConfigError, ParamSpec, check_all, check_arr
                                     check_command, check_state, fail, merge_overrides,
                                     usage_text as _usage_text)
 from pam_common.sample_gaps import WARN_RATIO_PARAM
+from pam_model.model_choices import ForceModel, FrictionLaw
 
-FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
-FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')
 JOINT_MODES = ('free', 'locked')
 TUNING_PRESETS = ('default', 'paper')
 
@@ -21,10 +20,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "'printed' or the path of a Table II YAML file."),
     ParamSpec('valve_map', 'default', 'string', '',
               "Valve map kappa(u): 'default' (shipped table) or a voltage_V,alpha CSV path."),
-    ParamSpec('friction_law', 'proposed', 'string', '', "Friction law of the filter's model.",
-              choices=FRICTION_LAWS),
-    ParamSpec('force_model', 'proposed', 'string', '', "Force model of the filter's model.",
-              choices=FORCE_MODELS),
+    ParamSpec('friction_law', str(FrictionLaw.PROPOSED), 'string', '',
+              "Friction law of the filter's model.", choices=FrictionLaw.names()),
+    ParamSpec('force_model', str(ForceModel.PROPOSED), 'string', '',
+              "Force model of the filter's model.", choices=ForceModel.names()),
     ParamSpec('joint_mode', 'free', 'string', '',
               "'free' joint, or 'locked' at the initial angle (torque experiments).",
               choices=JOINT_MODES),

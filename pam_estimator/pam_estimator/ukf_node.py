@@ -36,6 +36,7 @@ from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import declare_parameters, wants_help
 from pam_common.sample_gaps import SampleGaps
+from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 
 from .estimator_core import EstimatorCore
@@ -96,9 +97,8 @@ class UkfNode(Node):
                               f'{self.core.u_prev[1]:g}) V ({self.core.bad_commands} so far)')
 
     def _on_pressures(self, msg: Pressures) -> None:
-        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         self.gaps.update(msg.sample)
-        event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns)
+        event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns(msg.header.stamp))
         if event.output is None:
             return
         if event.kind == 'reset':

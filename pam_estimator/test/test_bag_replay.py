@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pam_common.stamps import stamp_ns
 from pam_common.testing import executable, wait_until
 from pam_estimator.bag_runs import load_bag_run
 from pam_estimator.evaluation import run_ukf
@@ -27,10 +28,6 @@ from pam_model.valve_map import load_valve_map
 from pam_interfaces.msg import JointEstimate
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'validation_mild_free'
-
-
-def _stamp(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
 def test_replayed_bag_into_ukf_node_matches_pam_evaluate(node_process, probe):
@@ -47,7 +44,7 @@ def test_replayed_bag_into_ukf_node_matches_pam_evaluate(node_process, probe):
     n = len(run.t)
     wait_until(lambda: len(estimates) >= n, 10.0)
 
-    online = {_stamp(m): m.angle for m in estimates.messages()}
+    online = {stamp_ns(m.header.stamp): m.angle for m in estimates.messages()}
     index = {s: k for k, s in enumerate(got.stamps_ns)}
     matched = sorted(index[s] for s in online if s in index)
     assert len(matched) >= 0.8 * n, f'{len(matched)} of {n} samples estimated'

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from pam_bag import bags
+from pam_common.stamps import ns_pair
 from pam_common.testing import executable
 from pam_estimator.bag_runs import is_bag, load_bag_run, load_run
 
@@ -23,7 +24,8 @@ def _write(path, samples, commands, measured, store):
     J = store.types['pam_interfaces/msg/JointMeasurement']
 
     def header(ns):
-        return Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id='pam_joint')
+        sec, nanosec = ns_pair(ns)
+        return Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id='pam_joint')
     w = bags.BagWriter(path, typestore=store)
     w.add_topic('/pam/pressures', 'pam_interfaces/msg/Pressures', [bags.make_qos()])
     w.add_topic('/pam/valve_command', 'pam_interfaces/msg/ValveCommand', [bags.make_qos()])

@@ -22,6 +22,7 @@ import subprocess
 import numpy as np
 import pytest
 
+from pam_common.stamps import stamp_ns
 from pam_common.testing import child_env, executable
 
 TOPICS = '/pam/pressures,/pam/valve_command,/pam/joint_measured'
@@ -71,7 +72,7 @@ def command_coverage(bag):
     for ti, data in zip(contents.topic_index, contents.data):
         topic = contents.topic_names[ti]
         s = store.deserialize_cdr(data, contents.topics[topic]).header.stamp
-        stamps[topic].append(s.sec * 1_000_000_000 + s.nanosec)
+        stamps[topic].append(stamp_ns(s))
     commands = np.array(stamps['/pam/valve_command'])
     pressures = np.unique(stamps['/pam/pressures'])
     inside = pressures[(pressures >= commands.min()) & (pressures <= commands.max())]

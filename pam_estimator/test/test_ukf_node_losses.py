@@ -6,6 +6,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
 from pam_common.diagnostics import status_values
+from pam_common.stamps import ns_stamp
 from pam_common.testing import diagnostic_statuses, wait_until
 from pam_interfaces.msg import JointEstimate, Pressures
 
@@ -14,8 +15,7 @@ BURST = 20000
 
 def pressures(sample: int, stamp_s: float) -> Pressures:
     msg = Pressures(p1=4.5e5, p2=4.5e5, sample=sample)
-    msg.header.stamp.sec = int(stamp_s)
-    msg.header.stamp.nanosec = int(round((stamp_s % 1.0) * 1e9))
+    msg.header.stamp = ns_stamp(round(stamp_s * 1e9))
     return msg
 
 

@@ -8,7 +8,8 @@ import time
 import numpy as np
 from std_srvs.srv import Trigger
 
-from pam_common.testing import executable, stamp_ns, wait_until
+from pam_common.stamps import ns_stamp, stamp_ns
+from pam_common.testing import executable, wait_until
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 # The demo (sim_node + ukf_node, perfect model, ideal sensor) gives an online angle error of
@@ -47,8 +48,7 @@ def test_estimate_follows_the_simulated_rig(node_process, probe):
 
 def publish_pressures(pub, stamp_s, p1, p2):
     msg = Pressures(p1=p1, p2=p2)
-    msg.header.stamp.sec = int(stamp_s)
-    msg.header.stamp.nanosec = int(round((stamp_s % 1.0) * 1e9))
+    msg.header.stamp = ns_stamp(round(stamp_s * 1e9))
     pub.publish(msg)
 
 

@@ -9,49 +9,42 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import physics, physics_vectorised
+from .model_choices import ForceModel, FrictionLaw
 from .parameters import Parameters, load_parameters
-from .physics import FORCE_MODELS, FRICTION_LAWS
 from .valve_map import ValveMap, load_valve_map
 
 T_S = 1.0e-3  # s, sample period of the rig (1 kHz)
-
-
-def law_code(name: str, choices: tuple[str, ...], what: str) -> int:
-    """Index of a law name, with an error listing the choices."""
-    if name not in choices:
-        raise ValueError(f'unknown {what} {name!r}; choose one of: {", ".join(choices)}')
-    return choices.index(name)
 
 
 @dataclass(frozen=True)
 class PamModel:
     """The antagonistic PAM joint model of MODEL.md section 2.
 
-    params: Table II; valve_map: kappa(u); friction: a name of FRICTION_LAWS; force: a name of
-    FORCE_MODELS; locked: joint held at its current angle (torque experiments); h: step (s).
+    params: Table II; valve_map: kappa(u); friction: a FrictionLaw, its name or its value; force:
+    a ForceModel, its name or its value (both kept as the name: 'proposed'); locked: joint held at
+    its current angle (torque experiments); h: step (s). Anything else is a ValueError listing the
+    names. Derived: friction_law, force_model (the members) and friction_code, force_code (their
+    plain integers, what the numba kernels take).
     """
 
     params: Parameters = field(default_factory=load_parameters)
     valve_map: ValveMap = field(default_factory=load_valve_map)
-    friction: str = 'proposed'
-    force: str = 'proposed'
+    friction: FrictionLaw | str = str(FrictionLaw.PROPOSED)
+    force: ForceModel | str = str(ForceModel.PROPOSED)
     locked: bool = False
     h: float = T_S
 
     def __post_init__(self):
         object.__setattr__(self, 'params_array', self.params.as_record_array())
-        law_code(self.friction, FRICTION_LAWS, 'friction law')
-        law_code(self.force, FORCE_MODELS, 'force model')
+        friction_law = FrictionLaw.coerce(self.friction)
+        force_model = ForceModel.coerce(self.force)
+        for name, value in (('friction', str(friction_law)), ('force', str(force_model)),
+                            ('friction_law', friction_law), ('force_model', force_model),
+                            ('friction_code', int(friction_law)),
+                            ('force_code', int(force_model))):
+            object.__setattr__(self, name, value)
         if not (np.isfinite(self.h) and self.h > 0.0):
             raise ValueError(f'step h must be > 0 s, got {self.h!r}')
-
-    @property
-    def friction_code(self) -> int:
-        return FRICTION_LAWS.index(self.friction)
-
-    @property
-    def force_code(self) -> int:
-        return FORCE_MODELS.index(self.force)
 
     def openings(self, u) -> np.ndarray:
         """alpha = kappa(u) for voltages u (V), any shape."""
@@ -75,11 +68,11 @@ class PamModel:
         Returns (X_next (N, 4), T_f (N,), sigma (N,)).
         """
         return physics_vectorised.rk4_steps(X, self.openings(u), self.h, self.params,
-                                            self.friction_code, self.force_code, self.locked)
+                                            self.friction_law, self.force_model, self.locked)
 
     def outputs(self, X):
         """Forces and torque at states X (..., 4): (F1 N, F2 N, tau N m), eq. (6)-(8)."""
         X = np.asarray(X, dtype=float)
         F1, F2 = physics_vectorised.muscle_forces(X[..., 0], X[..., 2], X[..., 3], self.params,
-                                                  self.force_code)
+                                                  self.force_model)
         return F1, F2, physics_vectorised.joint_torque(X[..., 0], F1, F2, self.params)

@@ -3,7 +3,9 @@
 State x = [psi, psi_dot, P1, P2] (rad, rad/s, Pa abs, Pa abs); input alpha = kappa(u) in [0, 1].
 Every function is pure; the parameters come in as a :class:`pam_model.parameters.Parameters`
 NamedTuple ``p``. Each function is also callable as plain Python through ``.py_func`` (the filter's
-reference oracle uses that path).
+reference oracle uses that path). The friction law and the force model arrive as plain integers,
+``int(FrictionLaw...)`` and ``int(ForceModel...)`` of :mod:`pam_model.model_choices` (PamModel
+checks the user's names and passes them so).
 
 Guards, so that no finite input yields NaN or inf (the UKF evaluates sigma points far from the
 estimate, and full-range inputs drive the plant itself close to V = 0 near |psi| = 34.9 deg):
@@ -22,6 +24,8 @@ from typing import NamedTuple
 
 from numba import njit
 
+from .model_choices import ForceModel, FrictionLaw
+
 PSI_MAX = math.radians(60.0)    # rad, state clamp on the joint angle
 OMEGA_MAX = 100.0               # rad/s, state clamp on the joint velocity
 P_MIN = 1.0e3                   # Pa abs, state clamp, lower
@@ -30,11 +34,6 @@ V_MIN = 1.0e-6                  # m^3, floor of the muscle volume
 DP_MIN = 1.0e4                  # Pa, floor of P_i - P_out in the tube friction T_p
 U_MIN = 0.0                     # V
 U_MAX = 10.0                    # V
-
-#: Friction laws (Table III), selectable by name; the kernels take the integer code.
-FRICTION_LAWS = ('proposed', 'linear', 'coulomb', 'tondu', 'none')
-#: Contraction force models, selectable by name; the kernels take the integer code.
-FORCE_MODELS = ('proposed', 'length_independent', 'no_offset')
 
 
 @njit(cache=True)
@@ -172,13 +171,13 @@ def pressure_region(P, p):
 def contraction_force(l, P, p_v1, p_v2, p_w1, p_w2, L0, force_model):
     """F = v(l) P + w(l) (N), v = p_v1 l + p_v2, w = p_w1 l + p_w2; l in m, P in Pa abs.
 
-    force_model: 0 proposed (eq. 6-7); 1 length_independent (coefficients frozen at l = L0);
-    2 no_offset (w = 0, F = v(l) P).
+    force_model: int(ForceModel): PROPOSED (eq. 6-7); LENGTH_INDEPENDENT (coefficients frozen at
+    l = L0); NO_OFFSET (w = 0, F = v(l) P).
     """
-    if force_model == 1:
+    if force_model == ForceModel.LENGTH_INDEPENDENT:
         l = L0
     v = p_v1 * l + p_v2
-    if force_model == 2:
+    if force_model == ForceModel.NO_OFFSET:
         return v * P
     return v * P + (p_w1 * l + p_w2)
 
@@ -202,25 +201,25 @@ def joint_torque(psi, F1, F2, p):
 
 @njit(cache=True)
 def coulomb_level(psi_dot, P1, P2, F1, F2, p, friction_law):
-    """T_c (N m) and viscous coefficient c (N m s/rad) of the selected friction law.
+    """T_c (N m) and viscous coefficient c (N m s/rad) of the friction law int(FrictionLaw).
 
-    0 proposed: T_c = r_p mu_s |F1 + F2 - M g| + mu_p (1/(P1-P_out)^2 + 1/(P2-P_out)^2), c = c_s
-    1 linear:   T_c = 0, c = c_s (viscous only)
-    2 coulomb:  T_c = r_p F_r (simple Coulomb force F_r at the shaft radius), c = 0
-    3 tondu:    T_c = (f_s - f_k) exp(-|psi_dot|/xdot_k) + f_k, c = 0
-    4 none:     no friction
+    PROPOSED: T_c = r_p mu_s |F1 + F2 - M g| + mu_p (1/(P1-P_out)^2 + 1/(P2-P_out)^2), c = c_s
+    LINEAR:   T_c = 0, c = c_s (viscous only)
+    COULOMB:  T_c = r_p F_r (simple Coulomb force F_r at the shaft radius), c = 0
+    TONDU:    T_c = (f_s - f_k) exp(-|psi_dot|/xdot_k) + f_k, c = 0
+    NONE:     no friction
     """
-    if friction_law == 0:
+    if friction_law == FrictionLaw.PROPOSED:
         dP1 = max(P1 - p.P_out, DP_MIN)
         dP2 = max(P2 - p.P_out, DP_MIN)
         T_sh = p.r_p * p.mu_s * abs(F1 + F2 - p.M * p.g)
         T_p = p.mu_p * (1.0 / (dP1 * dP1) + 1.0 / (dP2 * dP2))
         return T_sh + T_p, p.c_s
-    if friction_law == 1:
+    if friction_law == FrictionLaw.LINEAR:
         return 0.0, p.c_s
-    if friction_law == 2:
+    if friction_law == FrictionLaw.COULOMB:
         return p.r_p * p.F_r, 0.0
-    if friction_law == 3:
+    if friction_law == FrictionLaw.TONDU:
         return (p.f_s - p.f_k) * math.exp(-abs(psi_dot) / p.xdot_k) + p.f_k, 0.0
     return 0.0, 0.0
 
@@ -233,7 +232,7 @@ def friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model):
     sliding when |omega*| > (h/J) T_c: T_f = (T_c sgn(omega*) + c omega*) / (1 + (h/J) c);
     sticking otherwise: T_f = (J/h) omega*. Every law of Table III goes through this form.
     """
-    if friction_law == 4:
+    if friction_law == FrictionLaw.NONE:
         return 0.0, True
     F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
     T0 = joint_torque(psi, F1, F2, p) - p.k_s * psi

@@ -3,13 +3,15 @@
 An independent implementation of :mod:`pam_model.physics` (same equations, same guards, written
 with array operations and ``np.where`` instead of branches) over states X of shape (N, 4) =
 [psi, psi_dot, P1, P2] (rad, rad/s, Pa abs, Pa abs) and openings alpha of shape (N, 2) or (2,).
-The two paths agree to about 1e-14 relative; a test holds them to 1e-12.
+The two paths agree to about 1e-14 relative; a test holds them to 1e-12. The friction law and
+the force model may be given as a member of FrictionLaw / ForceModel, its name or its integer
+value; anything else is a ValueError listing the names.
 """
 
 import numpy as np
 
-from .physics import (DP_MIN, OMEGA_MAX, P_MAX, P_MIN, PSI_MAX, V_MIN, FRICTION_LAWS,
-                      FORCE_MODELS)
+from .model_choices import ForceModel, FrictionLaw
+from .physics import DP_MIN, OMEGA_MAX, P_MAX, P_MIN, PSI_MAX, V_MIN
 
 
 def clamp_states(X):
@@ -52,14 +54,15 @@ def mass_flows(P, alpha, A1, A2, p):
     return np.where(m_tilde > 0.0, A1, A2) * m_tilde
 
 
-def muscle_forces(psi, P1, P2, p, force_model=0):
+def muscle_forces(psi, P1, P2, p, force_model=ForceModel.PROPOSED):
     """F1, F2 (N) for angles psi (rad) and pressures (Pa abs); force_model as in physics."""
+    force_model = ForceModel.coerce(force_model)
     l1, l2 = muscle_lengths(psi, p)
-    if force_model == 1:
+    if force_model == ForceModel.LENGTH_INDEPENDENT:
         l1 = l2 = np.full_like(np.asarray(psi, dtype=float), p.L0)
     F1 = (p.p_v1_1 * l1 + p.p_v2_1) * P1
     F2 = (p.p_v1_2 * l2 + p.p_v2_2) * P2
-    if force_model != 2:
+    if force_model != ForceModel.NO_OFFSET:
         F1 = F1 + (p.p_w1_1 * l1 + p.p_w2_1)
         F2 = F2 + (p.p_w1_2 * l2 + p.p_w2_2)
     return F1, F2
@@ -70,32 +73,36 @@ def joint_torque(psi, F1, F2, p):
     return p.r * np.cos(psi) * (F1 - F2)
 
 
-def friction_torque(X, h, p, friction_law=0, force_model=0):
+def friction_torque(X, h, p, friction_law=FrictionLaw.PROPOSED,
+                    force_model=ForceModel.PROPOSED):
     """Kikuuwe friction (N m) and sliding flags for clamped states X (N, 4), step h (s)."""
+    friction_law = FrictionLaw.coerce(friction_law)
     psi, psi_dot, P1, P2 = X.T
-    if friction_law == 4:
+    if friction_law == FrictionLaw.NONE:
         return np.zeros(len(X)), np.ones(len(X), dtype=bool)
     F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
     z = h / p.J
     omega_star = psi_dot + z * (joint_torque(psi, F1, F2, p) - p.k_s * psi)
     c = p.c_s
-    if friction_law == 0:
+    if friction_law == FrictionLaw.PROPOSED:
         dP1 = np.maximum(P1 - p.P_out, DP_MIN)
         dP2 = np.maximum(P2 - p.P_out, DP_MIN)
         T_c = (p.r_p * p.mu_s * np.abs(F1 + F2 - p.M * p.g)
                + p.mu_p * (1.0 / (dP1 * dP1) + 1.0 / (dP2 * dP2)))
-    elif friction_law == 1:
+    elif friction_law == FrictionLaw.LINEAR:
         T_c = np.zeros_like(psi)
-    elif friction_law == 2:
+    elif friction_law == FrictionLaw.COULOMB:
         T_c, c = np.full_like(psi, p.r_p * p.F_r), 0.0
-    else:
+    elif friction_law == FrictionLaw.TONDU:
         T_c, c = (p.f_s - p.f_k) * np.exp(-np.abs(psi_dot) / p.xdot_k) + p.f_k, 0.0
+    else:
+        raise NotImplementedError(f'friction law {friction_law} has no vectorised form')
     sliding = np.abs(omega_star) > z * T_c
     T_slide = (np.copysign(T_c, omega_star) + c * omega_star) / (1.0 + z * c)
     return np.where(sliding, T_slide, omega_star / z), sliding
 
 
-def state_derivatives(X, alpha, T_f, p, force_model=0, locked=False):
+def state_derivatives(X, alpha, T_f, p, force_model=ForceModel.PROPOSED, locked=False):
     """f(x) of (11a) for states X (N, 4) with T_f (N,) held; returns (N, 4) in SI rates."""
     psi, psi_dot, P1, P2 = X.T
     l1, l2 = muscle_lengths(psi, p)
@@ -126,15 +133,14 @@ def subsystem_indices(sliding, P1, P2, p):
         + np.searchsorted(edges, P2, side='right')
 
 
-def rk4_steps(X, alpha, h, p, friction_law=0, force_model=0, locked=False):
+def rk4_steps(X, alpha, h, p, friction_law=FrictionLaw.PROPOSED, force_model=ForceModel.PROPOSED,
+              locked=False):
     """One RK4 step of length h (s) for every state of X (N, 4), friction held.
 
     alpha: openings (N, 2) or (2,) in [0, 1]. Returns (X_next (N, 4), T_f (N,), sigma (N,)).
     """
-    if isinstance(friction_law, str):
-        friction_law = FRICTION_LAWS.index(friction_law)
-    if isinstance(force_model, str):
-        force_model = FORCE_MODELS.index(force_model)
+    friction_law = FrictionLaw.coerce(friction_law)
+    force_model = ForceModel.coerce(force_model)
     X = clamp_states(X)
     alpha = np.broadcast_to(np.asarray(alpha, dtype=float), (len(X), 2))
     if locked:

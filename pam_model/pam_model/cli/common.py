@@ -22,7 +22,7 @@ def run_cli(main_body, argv=None) -> int:
 
 def add_model_arguments(parser: argparse.ArgumentParser, laws: bool = True) -> None:
     """--params, --mismatch, --kappa and (laws=True) --friction, --force, --locked."""
-    from ..physics import FORCE_MODELS, FRICTION_LAWS
+    from ..model_choices import ForceModel, FrictionLaw
     parser.add_argument('--params', default='default', metavar='SET|FILE',
                         help="Table II set: 'default' (corrected), 'printed', or a YAML file "
                              "(default: %(default)s)")
@@ -32,11 +32,13 @@ def add_model_arguments(parser: argparse.ArgumentParser, laws: bool = True) -> N
     parser.add_argument('--kappa', default='default', metavar='FILE',
                         help='valve map table CSV (voltage_V,alpha) (default: shipped table)')
     if not laws:
-        parser.set_defaults(friction='proposed', force='proposed', locked=False)
+        parser.set_defaults(friction=str(FrictionLaw.PROPOSED), force=str(ForceModel.PROPOSED),
+                            locked=False)
         return
-    parser.add_argument('--friction', default='proposed', choices=FRICTION_LAWS,
+    parser.add_argument('--friction', default=str(FrictionLaw.PROPOSED),
+                        choices=FrictionLaw.names(),
                         help='friction law (Table III) (default: %(default)s)')
-    parser.add_argument('--force', default='proposed', choices=FORCE_MODELS,
+    parser.add_argument('--force', default=str(ForceModel.PROPOSED), choices=ForceModel.names(),
                         help='contraction force model (default: %(default)s)')
     parser.add_argument('--locked', action='store_true',
                         help='lock the joint at its initial angle (torque experiments)')

@@ -24,6 +24,7 @@ from numba import njit
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
+from ..model_choices import ForceModel, FrictionLaw
 from ..physics import friction_torque, joint_torque, muscle_forces
 from .fit_result import Estimate, GroupFit, NotIdentifiable, check_identified, standard_errors
 
@@ -32,12 +33,14 @@ PRESSURE_FILTER_HZ = 5.0                # Hz, low-pass of the measured pressures
 GRID = np.linspace(-1.2, 1.2, 9)        # log factors of the coarse start grid
 PARAMETERS = ('mu_s', 'mu_p')
 UNITS = ('-', 'N m Pa^2')
+FRICTION = int(FrictionLaw.PROPOSED)    # the law whose mu_s, mu_p are fitted (kernel code)
+FORCE = int(ForceModel.PROPOSED)        # the force model of the identified coefficients
 
 
 @njit(cache=True)
 def joint_acceleration(psi, P1, P2, T_f, p):
     """psi_ddot (rad/s^2) of eq. (9) at angle psi (rad), pressures P1, P2 (Pa), friction T_f (N m)."""
-    F1, F2 = muscle_forces(psi, P1, P2, p, 0)
+    F1, F2 = muscle_forces(psi, P1, P2, p, FORCE)
     return (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
 
 
@@ -49,7 +52,7 @@ def joint_trajectory(psi0, psi_dot0, P1, P2, dt, p, out):
     out[0] = psi
     for k in range(dt.shape[0]):
         h = dt[k]
-        T_f, _ = friction_torque(psi, w, P1[k], P2[k], h, p, 0, 0)
+        T_f, _ = friction_torque(psi, w, P1[k], P2[k], h, p, FRICTION, FORCE)
         a1 = joint_acceleration(psi, P1[k], P2[k], T_f, p)
         a2 = joint_acceleration(psi + 0.5 * h * w, P1[k], P2[k], T_f, p)
         w2 = w + 0.5 * h * a1
