@@ -7,7 +7,7 @@ import pytest
 
 from pam_model import physics, physics_vectorised
 from pam_model.model import PamModel
-from pam_model.physics import FORCE_MODELS, FRICTION_LAWS
+from pam_model.model_choices import ForceModel, FrictionLaw
 from pam_model.simulate import simulate
 
 
@@ -19,8 +19,8 @@ def random_states(rng, n, extreme=False):
                             rng.uniform(1.2e5, 7.2e5, n), rng.uniform(1.2e5, 7.2e5, n)])
 
 
-@pytest.mark.parametrize('friction', FRICTION_LAWS)
-@pytest.mark.parametrize('force', FORCE_MODELS)
+@pytest.mark.parametrize('friction', FrictionLaw.names())
+@pytest.mark.parametrize('force', ForceModel.names())
 @pytest.mark.parametrize('locked', [False, True])
 def test_scalar_and_vectorised_steps_agree(friction, force, locked):
     rng = np.random.default_rng(7)
@@ -42,13 +42,14 @@ def test_scalar_path_runs_as_plain_python_too():
     x = (0.1, 0.5, 4e5, 3e5)
     a = (physics.valve_opening.py_func(6.0, vm.u, vm.alpha),
          physics.valve_opening.py_func(4.0, vm.u, vm.alpha))
-    compiled = physics.rk4_step(*x, *a, 1e-3, p, 0, 0, False)
+    codes = (int(FrictionLaw.PROPOSED), int(ForceModel.PROPOSED))
+    compiled = physics.rk4_step(*x, *a, 1e-3, p, *codes, False)
     # py_func of the outer function still calls compiled inner functions; results must match
-    plain = physics.rk4_step.py_func(*x, *a, 1e-3, p, 0, 0, False)
+    plain = physics.rk4_step.py_func(*x, *a, 1e-3, p, *codes, False)
     np.testing.assert_allclose(compiled[:5], plain[:5], rtol=1e-14)
 
 
-@pytest.mark.parametrize('friction', FRICTION_LAWS)
+@pytest.mark.parametrize('friction', FrictionLaw.names())
 @pytest.mark.parametrize('locked', [False, True])
 def test_no_nan_or_inf_from_extreme_finite_states_and_inputs(friction, locked):
     rng = np.random.default_rng(3)
@@ -108,7 +109,7 @@ def test_free_joint_moves_positive_when_u1_rises():
     assert math.degrees(run.x[-1, 0]) > 5.0
 
 
-@pytest.mark.parametrize('friction', ['linear', 'coulomb', 'tondu', 'none'])
+@pytest.mark.parametrize('friction', FrictionLaw.names()[1:])
 def test_alternative_friction_laws_change_the_motion(friction):
     U = np.tile([6.5, 4.5], (800, 1))
     x0 = [0.0, 0.0, 4.5e5, 4.5e5]
@@ -117,7 +118,7 @@ def test_alternative_friction_laws_change_the_motion(friction):
     assert np.max(np.abs(alt.x[:, 0] - base.x[:, 0])) > 1e-4
 
 
-@pytest.mark.parametrize('force', ['length_independent', 'no_offset'])
+@pytest.mark.parametrize('force', ForceModel.names()[1:])
 def test_alternative_force_models_change_the_torque(force):
     X = np.array([[0.2, 0.0, 4e5, 3e5]])
     assert abs(PamModel(force=force).outputs(X)[2] - PamModel().outputs(X)[2]) > 1e-3

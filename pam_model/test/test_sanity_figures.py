@@ -7,6 +7,7 @@ import pytest
 
 from pam_model import physics
 from pam_model.model import PamModel
+from pam_model.model_choices import ForceModel
 from pam_model.parameters import load_parameters
 from pam_model.simulate import simulate
 from pam_model.valve_map import (DEFAULT_STATIC_CURVE, calibrate_valve_map, data_path,
@@ -14,6 +15,7 @@ from pam_model.valve_map import (DEFAULT_STATIC_CURVE, calibrate_valve_map, data
                                  steady_pressure)
 
 P = load_parameters('default')
+PROPOSED_FORCE = int(ForceModel.PROPOSED)   # the scalar kernels take the integer value
 
 
 def crossing_time(t, signal, level, rising):
@@ -31,14 +33,14 @@ def test_volume_at_rest_length_and_zero_volume_length():
 
 
 def test_forces_at_rest_length_and_500_kPa():
-    F1, F2 = physics.muscle_forces(0.0, 5e5, 5e5, P, 0)
+    F1, F2 = physics.muscle_forces(0.0, 5e5, 5e5, P, PROPOSED_FORCE)
     assert F1 == pytest.approx(53.70, abs=0.005)
     assert F2 == pytest.approx(53.81, abs=0.005)
 
 
 def test_printed_set_differs_by_31_N():
     printed = load_parameters('printed')
-    F1, F2 = physics.muscle_forces(0.0, 5e5, 5e5, printed, 0)
+    F1, F2 = physics.muscle_forces(0.0, 5e5, 5e5, printed, PROPOSED_FORCE)
     assert F1 == pytest.approx(53.70, abs=0.005)
     assert F2 == pytest.approx(22.3, abs=0.05)
 
@@ -84,7 +86,7 @@ def test_discharging_from_700_kPa_with_alpha_0():
 def test_stiffness_natural_frequency_and_damping_with_pressures_held():
     held = P.replace(k1=0.0, k2=0.0)
     eps = 1e-6
-    tau = [physics.joint_torque(s, *physics.muscle_forces(s, 5e5, 5e5, held, 0), held)
+    tau = [physics.joint_torque(s, *physics.muscle_forces(s, 5e5, 5e5, held, PROPOSED_FORCE), held)
            for s in (-eps, eps)]
     stiffness = -(tau[1] - tau[0]) / (2 * eps) + held.k_s
     assert stiffness == pytest.approx(8.0, abs=0.1)
