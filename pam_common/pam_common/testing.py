@@ -32,6 +32,7 @@ from pathlib import Path
 import pytest
 
 from pam_common.executables import executable_candidates, find_executable
+from pam_common.node_params import ConfigError
 from pam_common.stamps import stamp_ns  # noqa: F401 - the tests import it from here too
 
 #: The project venv when running from a source checkout (make setup); None on a colcon install.
@@ -393,3 +394,21 @@ def assert_node_refuses_params_file(node_process, folder: Path, node: str, packa
     path, line = malformed_params_file(folder, kind)
     process = node_process(node, package, '--params-file', str(path))
     assert_params_file_error(process, f'[{node}]', path, line)
+
+
+# ---------------------------------------------------------------------------- parameter choices
+def assert_takes_exactly(build_config, specs, name: str, names) -> list:
+    """The string parameter `name` of a node's table `specs` offers exactly `names` (its choices,
+    in that order); each of them builds a config with build_config({name: value}) (returned, in
+    order) and near misses ('', '0', 'x', a name in upper case or with a trailing space) fail with
+    the one-line choice error listing the names."""
+    spec = next(s for s in specs if s.name == name)
+    assert spec.choices == tuple(names), spec.choices
+    built = [build_config({name: value}) for value in names]
+    near_misses = ['', '0', 'x'] + [n.upper() for n in names] + [n + ' ' for n in names]
+    for value in near_misses:
+        with pytest.raises(ConfigError) as caught:
+            build_config({name: value})
+        assert str(caught.value) == (f"parameter '{name}': unknown value {value!r}; "
+                                     f"choose one of: {', '.join(names)}")
+    return built
