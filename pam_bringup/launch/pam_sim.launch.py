@@ -1,61 +1,60 @@
 """The PAM stack with a full ROS 2 install: `ros2 launch pam_bringup pam_sim.launch.py`.
 
-Starts, in namespace /pam, the rig (sim_node, or driver_node with rig:=driver), ukf_node,
-reference_node and pi_node, all with one params file (default: this package's
-config/bringup.yaml, one section per node keyed /pam/<node>). Same stack as `pam-bringup`, which
-needs no launch package. Examples:
+Starts, in namespace /pam, the nodes of pam_bringup.stack (the node list pam-bringup starts too):
+the rig (sim_node, or driver_node with rig:=driver), ukf_node, reference_node and pi_node, all
+with one params file (default: this package's config/bringup.yaml, one section per node keyed
+/pam/<node>). Same stack as `pam-bringup`, which needs no launch package. Examples:
 
     ros2 launch pam_bringup pam_sim.launch.py
     ros2 launch pam_bringup pam_sim.launch.py params_file:=/path/my.yaml use_controller:=false
 """
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
+from pam_bringup.stack import (CONTROLLER, DEFAULT_NAMESPACE, REFERENCE, RIGS, every_node,
+                               stack_nodes)
+
+
+def stack_actions(context):
+    """A Node action per node of pam_bringup.stack.stack_nodes for this launch's rig,
+    use_reference and use_controller."""
+    nodes = stack_nodes(LaunchConfiguration('rig').perform(context),
+                        reference=IfCondition(LaunchConfiguration('use_reference'))
+                        .evaluate(context),
+                        controller=IfCondition(LaunchConfiguration('use_controller'))
+                        .evaluate(context))
+    return [Node(package=node.package, executable=node.name, name=node.name,
+                 namespace=LaunchConfiguration('namespace'),
+                 parameters=[LaunchConfiguration('params_file')], output='screen',
+                 emulate_tty=True)
+            for node in nodes]
+
 
 def generate_launch_description():
-    params_file = LaunchConfiguration('params_file')
-    namespace = LaunchConfiguration('namespace')
-    rig = LaunchConfiguration('rig')
-
+    sections = ', '.join(f'{DEFAULT_NAMESPACE}/{node.name}' for node in every_node())
+    rigs = '; '.join(f"'{rig}': {node.name} ({node.package})" for rig, node in RIGS.items())
     arguments = [
         DeclareLaunchArgument(
             'params_file',
             default_value=PathJoinSubstitution(
                 [FindPackageShare('pam_bringup'), 'config', 'bringup.yaml']),
-            description='ROS 2 params file with a section per node (/pam/sim_node, '
-                        '/pam/ukf_node, /pam/pi_node, /pam/reference_node).'),
+            description=f'ROS 2 params file with a section per node ({sections}).'),
         DeclareLaunchArgument(
-            'rig', default_value='sim', choices=['sim', 'driver'],
-            description="'sim': the simulated rig sim_node; 'driver': driver_node (pam_driver)."),
+            'rig', default_value='sim', choices=sorted(RIGS),
+            description=f'The rig: {rigs}.'),
         DeclareLaunchArgument(
-            'namespace', default_value='pam',
+            'namespace', default_value=DEFAULT_NAMESPACE.lstrip('/'),
             description='Namespace of every node (the params file keys must match it).'),
         DeclareLaunchArgument(
             'use_controller', default_value='true', choices=['true', 'false'],
-            description='Start pi_node.'),
+            description=f'Start the controller ({CONTROLLER.name}).'),
         DeclareLaunchArgument(
             'use_reference', default_value='true', choices=['true', 'false'],
-            description='Start reference_node.'),
+            description=f'Start the reference generator ({REFERENCE.name}).'),
     ]
-
-    def node(package, executable, condition=None):
-        return Node(package=package, executable=executable, name=executable,
-                    namespace=namespace, parameters=[params_file], output='screen',
-                    emulate_tty=True, condition=condition)
-
-    nodes = [
-        # rig:=sim -> sim_node, rig:=driver -> driver_node, both of pam_driver
-        Node(package='pam_driver', executable=[rig, '_node'], name=[rig, '_node'],
-             namespace=namespace, parameters=[params_file], output='screen', emulate_tty=True),
-        node('pam_estimator', 'ukf_node'),
-        node('pam_controller', 'reference_node',
-             condition=IfCondition(LaunchConfiguration('use_reference'))),
-        node('pam_controller', 'pi_node',
-             condition=IfCondition(LaunchConfiguration('use_controller'))),
-    ]
-    return LaunchDescription(arguments + nodes)
+    return LaunchDescription(arguments + [OpaqueFunction(function=stack_actions)])

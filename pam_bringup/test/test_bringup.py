@@ -22,8 +22,9 @@ import pytest
 import yaml
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
-from pam_bringup.bringup import (_key_pattern, default_params_file, find_executable,
-                                    section_keys, sections_for)
+from pam_bringup.params_sections import key_pattern, section_keys, sections_for
+from pam_bringup.stack import default_params_file, every_node
+from pam_common.executables import find_executable
 from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable, stamp_ns
 
 WINDOW = 1.5        # s, rate measurement window
@@ -84,17 +85,19 @@ def test_help_exits_0():
 
 
 def test_params_file_sections_follow_rcl_matching():
-    assert _key_pattern('/pam/sim_node').match('/pam/sim_node')
-    assert _key_pattern('pam/sim_node').match('/pam/sim_node')
-    assert _key_pattern('/**').match('/pam/sim_node')
-    assert _key_pattern('/**/sim_node').match('/pam/sim_node')
-    assert _key_pattern('/**/sim_node').match('/sim_node')
-    assert _key_pattern('/pam/*').match('/pam/ukf_node')
-    assert not _key_pattern('sim_node').match('/pam/sim_node')   # means /sim_node
-    assert not _key_pattern('/other/sim_node').match('/pam/sim_node')
+    assert key_pattern('/pam/sim_node').match('/pam/sim_node')
+    assert key_pattern('pam/sim_node').match('/pam/sim_node')
+    assert key_pattern('/**').match('/pam/sim_node')
+    assert key_pattern('/**/sim_node').match('/pam/sim_node')
+    assert key_pattern('/**/sim_node').match('/sim_node')
+    assert key_pattern('/pam/*').match('/pam/ukf_node')
+    assert not key_pattern('sim_node').match('/pam/sim_node')   # means /sim_node
+    assert not key_pattern('/other/sim_node').match('/pam/sim_node')
     keys = section_keys(default_params_file())
-    for node in ('sim_node', 'driver_node', 'ukf_node', 'pi_node', 'reference_node'):
-        assert sections_for(f'/pam/{node}', keys) == [f'/pam/{node}'], keys
+    assert {n.name for n in every_node()} == {'sim_node', 'driver_node', 'ukf_node', 'pi_node',
+                                              'reference_node'}
+    for node in every_node():
+        assert sections_for(f'/pam/{node.name}', keys) == [f'/pam/{node.name}'], keys
 
 
 # ---------------------------------------------------------------------------- real runs
@@ -156,7 +159,7 @@ def test_a_child_that_dies_fails_the_bringup(node_process, ros_domain, tmp_path)
 
 def test_full_stack_runs_closed_loop_until_ctrl_c(node_process, probe, ros_domain):
     missing = [name for name in ('pi_node', 'reference_node')
-               if find_executable(name, 'pam_bringup') is None
+               if find_executable(name, 'pam_controller') is None
                or importlib.util.find_spec(f'pam_controller.{name}') is None]
     if missing:
         pytest.skip(f'not written yet: {", ".join(missing)} (pam_controller)')

@@ -1,6 +1,6 @@
-"""pam-bringup's stop escalation on a child that hangs: SIGINT, SIGTERM, then the child's stacks
-(SIGUSR1, pam_common.stack_dump) in the log, then SIGKILL, and a failed exit. A real child
-process and real signals; the time limits shortened."""
+"""pam-bringup's stop escalation (pam_bringup.supervisor) on a child that hangs: SIGINT, SIGTERM,
+then the child's stacks (SIGUSR1, pam_common.stack_dump) in the log, then SIGKILL, and a failed
+exit. A real child process and real signals; the time limits shortened."""
 
 from __future__ import annotations
 
@@ -11,8 +11,10 @@ import sys
 import textwrap
 import time
 
-from pam_bringup import bringup as bringup_module
-from pam_bringup.bringup import Bringup, Child, NodeSpec, Output
+from pam_bringup.supervisor import STOP_SIGNALS, Child, Output, Supervisor
+
+SIGTERM_AFTER = 0.5   # s (5 s in pam-bringup)
+STOP_TIMEOUT = 1.5    # s (10 s)
 
 HUNG = textwrap.dedent('''
     import signal, time
@@ -30,24 +32,27 @@ HUNG = textwrap.dedent('''
 ''')
 
 
-def test_a_child_that_does_not_stop_has_its_stacks_printed_then_is_killed(monkeypatch, capsys):
-    monkeypatch.setattr(bringup_module, 'SIGTERM_AFTER', 0.5)
-    monkeypatch.setattr(bringup_module, 'STOP_TIMEOUT', 1.5)
-    child = Child(NodeSpec('hung_node', 'pam_bringup', 'test'), [sys.executable, '-c', HUNG])
-    run = Bringup([child], dict(os.environ), Output([child.name], colour=False), log_dir=None)
+def stop_when_ready(name: str, script: str, capsys) -> tuple[Supervisor, Child, str]:
+    """Supervise `python -c script` as `name`; once it printed 'ready' itself (the 'started'
+    line quotes the script, 'ready' included), stop it: (supervisor, child, our output)."""
+    child = Child(name, [sys.executable, '-c', script], 'test')
+    run = Supervisor([child], dict(os.environ), Output('pam-bringup', [child.name], colour=False),
+                     sigterm_after=SIGTERM_AFTER, stop_timeout=STOP_TIMEOUT)
     run.start()
-    out = ''
     end = time.monotonic() + 30.0
-    while 'ready' not in out and time.monotonic() < end:
+    while 'ready' not in child.tail and time.monotonic() < end:
         time.sleep(0.05)
-        out += capsys.readouterr().out
-    assert 'ready' in out, out
+    assert 'ready' in child.tail, list(child.tail)
     try:
         run.stop()
     finally:
         if child.proc.poll() is None:
             child.proc.kill()
-    out += capsys.readouterr().out
+    return run, child, capsys.readouterr().out
+
+
+def test_a_child_that_does_not_stop_has_its_stacks_printed_then_is_killed(capsys):
+    run, child, out = stop_when_ready('hung_node', HUNG, capsys)
     assert run.report([]) == 1
     out += capsys.readouterr().out
     assert 'sending SIGTERM' in out
@@ -60,32 +65,18 @@ def test_a_child_that_does_not_stop_has_its_stacks_printed_then_is_killed(monkey
     assert 'hung_node did not stop cleanly' in out and 'killed by SIGKILL' in out, out
 
 
-def test_a_child_without_the_stack_dump_is_still_killed(monkeypatch, capsys):
+def test_a_child_without_the_stack_dump_is_still_killed(capsys):
     """SIGUSR1 ends a process that did not enable the dump (its default action): still an
     unclean stop, reported as such."""
-    monkeypatch.setattr(bringup_module, 'SIGTERM_AFTER', 0.5)
-    monkeypatch.setattr(bringup_module, 'STOP_TIMEOUT', 1.5)
     plain = HUNG.replace('enable_stack_dump()', '')
-    child = Child(NodeSpec('plain_node', 'pam_bringup', 'test'), [sys.executable, '-c', plain])
-    run = Bringup([child], dict(os.environ), Output([child.name], colour=False), log_dir=None)
-    run.start()
-    end = time.monotonic() + 30.0
-    out = ''
-    while 'ready' not in out and time.monotonic() < end:
-        time.sleep(0.05)
-        out += capsys.readouterr().out
-    try:
-        run.stop()
-    finally:
-        if child.proc.poll() is None:
-            child.proc.kill()
+    run, child, out = stop_when_ready('plain_node', plain, capsys)
     assert run.report([]) == 1
     out += capsys.readouterr().out
-    assert child.proc.returncode in (-9, -10), child.proc.returncode
+    assert child.proc.returncode in (-9, -10), (child.proc.returncode, list(child.tail))
     assert 'plain_node did not stop cleanly' in out, out
 
 
 def test_stack_dump_signal_is_not_one_the_nodes_stop_on():
     from pam_common.stack_dump import STACK_DUMP_SIGNAL
-    assert STACK_DUMP_SIGNAL not in (bringup_module.signal.SIGINT, bringup_module.signal.SIGTERM)
+    assert STACK_DUMP_SIGNAL not in STOP_SIGNALS
     assert subprocess.signal.Signals(STACK_DUMP_SIGNAL).name == 'SIGUSR1'

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from pam_bringup.bringup import section_keys, sections_for
+from pam_bringup.params_sections import section_keys, sections_for
 from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
                                 assert_node_refuses_params_file, assert_params_file_error,
                                 malformed_params_file)

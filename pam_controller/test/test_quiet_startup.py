@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from pam_bringup.bringup import CLEAN_STOP_CODES
+from pam_bringup.supervisor import CLEAN_STOP_CODES
 from pam_common.testing import child_env, executable
 from pam_model.cli.startup import exit_code_for
 
