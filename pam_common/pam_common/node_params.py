@@ -13,7 +13,7 @@ import textwrap
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-U_MIN, U_MAX = 0.0, 10.0        # V, valve voltage range (pam_model.physics)
+from pam_model.valve_voltage import U_MAX, U_MIN   # V, the valve voltage range
 
 
 class ConfigError(ValueError):

@@ -25,6 +25,7 @@ from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
                                     merge_overrides, usage_text, wants_help)
 from pam_controller.run_recorder import RunRecorder
+from pam_model.valve_voltage import U_MIN
 
 NODE_NAME = 'profile_player'
 DEFAULT_NAMESPACE = '/pam'
@@ -113,7 +114,7 @@ class ProfilePlayer(Node):
         self.guard = FiniteGuard(self.get_logger())      # non-finite -> 0 V (vent), as sim_node
         self.command_pub = self.guard.wrap(
             self.create_publisher(ValveCommand, 'valve_command', QOS),
-            safe={'u1': 0.0, 'u2': 0.0}, whole=True)
+            safe={'u1': U_MIN, 'u2': U_MIN}, whole=True)
         self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
         self.create_subscription(JointMeasurement, 'joint_measured', self._on_truth, QOS)
         self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)

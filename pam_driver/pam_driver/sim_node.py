@@ -88,6 +88,7 @@ from pam_common.stamps import ns_stamp, stamp_ns
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
+from pam_model.valve_voltage import SANITISE_RULE
 
 NODE_NAME = 'sim_node'
 DEFAULT_NAMESPACE = '/pam'
@@ -299,9 +300,8 @@ class SimNode(Node):
         if not ok:
             self._log_bad(
                 f'bad valve_command u1={msg.u1!r} V, u2={msg.u2!r} V sanitised to '
-                f'({self._rig.u[0]:g}, {self._rig.u[1]:g}) V (non-finite -> 0 V vent, else '
-                f'clipped to [0, 10] V); so far {non_finite} non-finite, {out_of_range} '
-                'out-of-range voltages')
+                f'({self._rig.u[0]:g}, {self._rig.u[1]:g}) V ({SANITISE_RULE}); so far '
+                f'{non_finite} non-finite, {out_of_range} out-of-range voltages')
 
     def _on_lockstep_watchdog(self) -> None:
         timeout = self.config.values['lockstep_timeout']

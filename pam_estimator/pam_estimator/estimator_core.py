@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pam_model.rig import sanitise_command
+from pam_model.valve_voltage import sanitise_command
 
 from .pam_ukf import PamUkf, UkfOutput
 

@@ -25,6 +25,7 @@ from typing import NamedTuple
 from numba import njit
 
 from .model_choices import ForceModel, FrictionLaw
+from .valve_voltage import U_MAX, U_MIN
 
 PSI_MAX = math.radians(60.0)    # rad, state clamp on the joint angle
 OMEGA_MAX = 100.0               # rad/s, state clamp on the joint velocity
@@ -32,8 +33,6 @@ P_MIN = 1.0e3                   # Pa abs, state clamp, lower
 P_MAX = 5.0e6                   # Pa abs, state clamp, upper
 V_MIN = 1.0e-6                  # m^3, floor of the muscle volume
 DP_MIN = 1.0e4                  # Pa, floor of P_i - P_out in the tube friction T_p
-U_MIN = 0.0                     # V
-U_MAX = 10.0                    # V
 
 
 @njit(cache=True)

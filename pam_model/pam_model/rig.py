@@ -6,14 +6,15 @@ pressure sensor and its random generator, and counts the commands it had to sani
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .model import PamModel
-from .physics import U_MAX, U_MIN
 from .sensor import PressureSensor
+from .valve_voltage import U_MIN, sanitise_command
+
+__all__ = ['RigSample', 'SimulatedRig', 'sanitise_command']
 
 
 @dataclass(frozen=True)
@@ -27,18 +28,6 @@ class RigSample:
     torque: float
     force: tuple[float, float]
     u: tuple[float, float]
-
-
-def sanitise_command(u: float) -> tuple[float, str]:
-    """A valve voltage made safe: non-finite -> 0 V (vent), else clipped to [0, 10] V.
-
-    Returns the voltage and '' if it was fine, 'non-finite' or 'out of range' otherwise.
-    """
-    if not math.isfinite(u):
-        return U_MIN, 'non-finite'
-    if u < U_MIN or u > U_MAX:
-        return min(max(u, U_MIN), U_MAX), 'out of range'
-    return float(u), ''
 
 
 class SimulatedRig:

@@ -19,7 +19,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .parameters import Parameters, data_path
-from .physics import U_MAX, U_MIN, gas_constants, inflow_per_area, outflow_per_area
+from .physics import gas_constants, inflow_per_area, outflow_per_area
+from .valve_voltage import U_MAX, U_MIN
 
 #: The shipped static curve of the simulated rig (step (b) input) and the kappa table made from it.
 DEFAULT_STATIC_CURVE = 'static_voltage_pressure.csv'
