@@ -16,7 +16,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='MCAP bags for the PAM stack: the bag library, bag_record, bag_play, pam-bag-info, pam-bag-recover.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'bag_record = pam_bag.entry_points:bag_record',

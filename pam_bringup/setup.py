@@ -20,7 +20,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='Bring-up of the PAM stack: pam-bringup, launch files, bring-up parameter files, tracking_report, the demo.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'pam-bringup = pam_bringup.entry_points:pam_bringup',

@@ -16,7 +16,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='Shared node infrastructure of the PAM stack: node skeleton, parameter tables, executors and stop signals, diagnostics, timing, stamps, topic names and QoS.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [],
     },

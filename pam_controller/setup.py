@@ -16,7 +16,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='Sensor-less PI control of the antagonistic PAM joint, references (reference_node, profile_player).',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'pi_node = pam_controller.entry_points:pi_node',

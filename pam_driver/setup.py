@@ -19,7 +19,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='What faces the PAM rig, real or simulated: driver_node, the DAQ protocol, calibration, pam-emulator, sim_node.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'sim_node = pam_driver.entry_points:sim_node',

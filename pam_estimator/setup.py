@@ -19,7 +19,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='Sensor-less UKF for the antagonistic PAM joint and its ROS 2 node.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'ukf_node = pam_estimator.entry_points:ukf_node',

@@ -17,7 +17,7 @@ setup(
     maintainer_email='maintainers@pam-ros.invalid',
     description='Antagonistic PAM joint model (Shin et al. 2021): physics, valve map, metrics, profiles.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'pam-simulate = pam_model.cli.entry_points:pam_simulate',

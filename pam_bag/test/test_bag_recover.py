@@ -14,7 +14,7 @@ _CACHE = {}
 
 
 def run(name, *args):
-    return subprocess.run([executable(name, 'pam_driver'), *map(str, args)],
+    return subprocess.run([executable(name, 'pam_bag'), *map(str, args)],
                           capture_output=True, text=True, timeout=60)
 
 

@@ -14,12 +14,21 @@ from pam_model.valve_map import load_valve_map
 
 
 def tool(name):
-    """The installed console script next to this interpreter (the project venv)."""
-    path = Path(sys.executable).parent / name
-    if not path.exists():
-        path = shutil.which(name)
-    assert path is not None, f'{name} is not installed: run the set-up (make setup)'
-    return str(path)
+    """The installed console script, looked up as pam_common.executables looks up node
+    executables (pam_model's tests import nothing of ROS): in the first AMENT_PREFIX_PATH prefix
+    that indexes pam_model, <prefix>/lib/pam_model/<name> (colcon, apt) or <prefix>/bin/<name>
+    (the project venv); with no such prefix, next to this interpreter, then on PATH."""
+    prefixes = [Path(p) for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    indexed = [p for p in prefixes
+               if (p / 'share/ament_index/resource_index/packages/pam_model').is_file()]
+    if indexed:
+        places = [indexed[0] / 'lib' / 'pam_model' / name, indexed[0] / 'bin' / name]
+    else:
+        places = [Path(sys.executable).parent / name, Path(shutil.which(name) or name)]
+    found = next((str(p) for p in places if p.is_file() and os.access(p, os.X_OK)), None)
+    assert found is not None, (f'{name} not found in {", ".join(map(str, places))}: run the '
+                               'set-up (make setup)')
+    return found
 
 
 def run(*args):
