@@ -19,7 +19,7 @@ import math
 import os
 import time
 
-from pam_controller.lockstep_run import run_lockstep_steps
+from pam_bringup.lockstep_run import run_lockstep_steps
 from pam_common.sample_gaps import loss_summary
 from pam_model.profiles import step_reference_profile
 

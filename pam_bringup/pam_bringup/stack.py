@@ -1,7 +1,7 @@
 """The PAM stack: which nodes make it, for which options. THE node list.
 
 pam-bringup (pam_bringup.bringup), the launch file (launch/pam_sim.launch.py) and the lockstep
-run (pam_bringup.lockstep_run) all take their nodes from stack_nodes(); nothing else names them.
+run (pam_bringup.lockstep_run) all take their node list from stack_nodes().
 No ROS import here: the launch file reads this module.
 
 Every node is started as `<executable> --ros-args -r __ns:=<namespace> --params-file <file>`

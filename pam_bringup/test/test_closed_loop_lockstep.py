@@ -5,7 +5,7 @@ acceptance targets on the TRUE angle / torque: steady-state error <= 3.0 % (angl
 
 import pytest
 
-from pam_controller.lockstep_run import run_lockstep_steps
+from pam_bringup.lockstep_run import run_lockstep_steps
 from pam_common.testing import claim_domain
 
 CASES = {'angle': ([0.0, 0.25, -0.15], 3.0), 'torque': ([0.0, 1.5, -1.0], 3.5)}
