@@ -3,27 +3,38 @@ SHELL := /bin/bash
 ROOT := $(abspath $(dir $(lastword $(MAKEFILE_LIST))))
 VENV := $(ROOT)/.venv
 
-# Extra arguments for pytest, e.g. `make test PYTEST_ARGS="-k valve -x"`.
+# Extra arguments for pytest, e.g. `make test PYTEST_ARGS="-k valve -x"`, and for colcon's package
+# selection, e.g. `make test COLCON_ARGS="--packages-select pam_model"`.
 PYTEST_ARGS ?=
+COLCON_ARGS ?=
 
 # Keep DDS discovery on this machine unless the caller says otherwise.
 ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export ROS_AUTOMATIC_DISCOVERY_RANGE
 
-.PHONY: setup test demo clean
+.PHONY: setup test test-venv demo clean
 
 setup:
 	@bash "$(ROOT)/scripts/setup.sh"
 
-# Runs every package's test/ folder (testpaths = */test in pytest.ini). pytest's exit code 5
-# (no test collected) is non-zero, so it fails the target like any other failure.
+# Every package's tests as an apt ROS user runs them: colcon build of a workspace over this
+# checkout (build/colcon_ws), then colcon test with pytest, one package at a time, and the
+# colcon test-result summary (scripts/colcon_check.sh). Fails on any failure, or if a package
+# ran no test.
 test: setup
+	cd "$(ROOT)" && bash "$(ROOT)/scripts/colcon_check.sh" $(COLCON_ARGS) -- $(PYTEST_ARGS)
+
+# The same tests in one pytest session against the venv's installed packages (testpaths = */test
+# in pytest.ini): no colcon build, for quick runs while developing. pytest's exit code 5 (no test
+# collected) fails it like any other failure.
+test-venv: setup
 	cd "$(ROOT)" && AMENT_PREFIX_PATH="$(VENV)" PATH="$(VENV)/bin:$$PATH" \
 		"$(VENV)/bin/python" -m pytest $(PYTEST_ARGS)
 
+# The main job: pam-demo (pam_bringup). `DURATION=30 make demo` records 30 s instead of 64.
 demo: setup
 	cd "$(ROOT)" && AMENT_PREFIX_PATH="$(VENV)" PATH="$(VENV)/bin:$$PATH" \
-		bash "$(ROOT)/scripts/demo.sh"
+		pam-demo $${DURATION:+--duration "$$DURATION"}
 
 clean:
 	rm -rf "$(ROOT)/build" "$(VENV)"
