@@ -25,6 +25,7 @@ setup(
         'console_scripts': [
             'pam-bringup = pam_bringup.entry_points:pam_bringup',
             'tracking_report = pam_bringup.entry_points:tracking_report',
+            'pam-demo = pam_bringup.entry_points:pam_demo',
         ],
     },
 )

@@ -1,8 +1,9 @@
 """The console scripts of pam_bringup (setup.py), quiet on a stop during start-up
-(pam_model.cli.startup: pam-bringup and tracking_report keep the quiet handlers until they
-install their own)."""
+(pam_model.cli.startup: pam-bringup, tracking_report and pam-demo keep the quiet handlers
+until they install their own)."""
 
 from pam_model.cli.startup import entry
 
 pam_bringup = entry('pam_bringup.bringup:main', own_handlers=True)
 tracking_report = entry('pam_bringup.tracking_report:main', own_handlers=True)
+pam_demo = entry('pam_bringup.demo:main', own_handlers=True)
