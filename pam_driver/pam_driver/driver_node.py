@@ -14,19 +14,18 @@ from the torque meter, angular velocity by finite difference of the angle); subs
 change) and `/diagnostics`. Services `~/arm` and `~/estop` (std_srvs/Trigger).
 
 Threads: a reader thread owns the serial connection (connect, handshake, read samples, send the
-heartbeat, the command watchdog, reconnect with exponential backoff); the executor thread
+heartbeat, the command watchdog tick, reconnect with exponential backoff); the executor thread
 (EventsExecutor via run_node) runs the subscription, services and the diagnostics timer and
-writes COMMAND frames under a lock.
+writes COMMAND frames. Both hand every event to the DriverCore (pam_driver.driver_core) under one
+lock and write the output it decides under that same lock, so a decision and its COMMAND frame are
+one step (a watchdog trip cannot be overtaken by a command decided before it).
 
-Safety (the choice, documented in README and PROTOCOL.md): the driver is either ARMED (valid
-commands, clipped to valve_limits, go to the valves) or SAFE (safe_output, default 0 V = vent both
-muscles). It goes SAFE, latched, on: the command watchdog (no valid command for watchdog_timeout
-after one was received), ~/estop, a pressure sensor fault (out of range or stuck), the device lost
-(unplugged, silent, handshake failed), a device refused at the handshake (another major protocol
-version: it gets nothing but HELLO) and any internal exception (the safe COMMAND is written before
-the port is closed). It goes back to ARMED only through ~/arm, which is refused while the device is
-not connected or a sensor fault persists; even then the valves stay at safe_output until the next
-valid command. At shutdown (SIGINT, SIGTERM) the driver sends safe_output before closing the port.
+Safety (the choice, documented in README and PROTOCOL.md): ARMED (valid commands, clipped to
+valve_limits, go to the valves) or SAFE (safe_output, latched until ~/arm) on the command watchdog,
+~/estop, a pressure sensor fault, the device lost or refused, an internal exception (the safe
+COMMAND is written before the port is closed): the decisions are pam_driver.driver_core's, whose
+docstring lists them. At shutdown (SIGINT, SIGTERM) the driver sends safe_output before closing
+the port.
 The port is opened for exclusive use (flock): a second driver on it is refused. The board itself
 vents both valves when no host frame arrives for 250 ms (its own watchdog); the SAMPLE status
 bit and the DEVICE_HEARTBEAT trip counter report it, and /diagnostics counts these 'board vents'
@@ -41,28 +40,29 @@ import math
 import sys
 import threading
 import time
+from typing import Callable
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
-from pam_driver import daq_protocol as proto
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_driver.driver_config import PARAMETERS, build_config, usage_text
-from pam_common.node_params import cli_preamble
 from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import declare_parameters
+from pam_common.node_params import cli_preamble, declare_parameters
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import RateStatistics
+
+from pam_driver import daq_protocol as proto
+from pam_driver.driver_config import PARAMETERS, build_config, usage_text
+from pam_driver.driver_core import Action, DriverCore, SafetyConfig
 
 NODE_NAME = 'driver_node'
 DEFAULT_NAMESPACE = '/pam'
 HARDWARE_ID = 'pam-daq-board'
 DIAGNOSTICS_PERIOD = 1.0
 LOG_THROTTLE = 1.0
-OUT_OF_RANGE_SAMPLES = 5      # consecutive implausible readings -> sensor fault
 REFUSED_LOG_PERIOD = 10.0     # s, an incompatible device is logged again at most this often
 
 SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
@@ -92,29 +92,15 @@ class DriverNode(Node):
         self._frame_id = self.config['frame_id']
         self._stop = threading.Event()
         self._io_lock = threading.Lock()     # the serial object and writes
-        self._lock = threading.Lock()        # state and counters
+        self._lock = threading.Lock()        # the core, the state and counters
         self._serial = None
         self._tx_seq = 0
         self._decoder = proto.Decoder()
         self._rx_seq = proto.SequenceTracker()
         self._stats = RateStatistics(1e-3, time.monotonic())
-        # safety state
-        self._armed = bool(self.config['arm_at_start'])
-        self._safe_reason = '' if self._armed else 'not armed at start'
-        self._output = tuple(self.config['safe_output'])
-        self._last_command_time = None       # monotonic time of the last valid command (armed)
-        self._watchdog_trips = 0
-        self._last_trip_ms = math.nan
-        self._estops = 0
-        # sensor sanity
-        self._out_of_range_run = [0, 0]
-        self._stuck = [[None, 0.0], [None, 0.0]]   # last count, since when
-        self._sensor_fault = ''
-        self._sensor_faults = 0
-        # counters
-        self._connected = False
-        self._connects = 0
-        self._disconnects = 0
+        # the safety decisions, fed under self._lock (monotonic times)
+        self._core = DriverCore(SafetyConfig.from_values(self.config), self.cal)
+        # counters of the serial link
         self._handshake_failures = 0
         self._incompatible = ''              # why the device was refused at the handshake
         self._refused_logged = -math.inf     # monotonic time of the last log line about it
@@ -129,11 +115,6 @@ class DriverNode(Node):
         self._log_nonfinite = self._logs.new()
         self._samples = 0
         self._protocol_errors = 0
-        self._internal_errors = 0
-        self._commands = 0
-        self._commands_clipped = 0
-        self._commands_nonfinite = 0
-        self._commands_ignored = 0
         self._reported = {}
         self._prev_angle = None
 
@@ -156,7 +137,7 @@ class DriverNode(Node):
         self.get_logger().info(
             f"port {self.config['port']} at {self.config['baud']} baud, calibration "
             f'{self.cal.source}; watchdog {self.config["watchdog_timeout"] * 1e3:g} ms, safe '
-            f'output {list(self._output)} V, {"armed" if self._armed else "disarmed"}')
+            f'output {list(self._core.output)} V, {"armed" if self._core.armed else "disarmed"}')
         sys.setswitchinterval(0.0005)
         self._thread = threading.Thread(target=self._reader_loop, name='driver_reader',
                                         daemon=True)
@@ -180,15 +161,17 @@ class DriverNode(Node):
         self._tx_seq = (self._tx_seq + 1) & 0xFFFF
         return seq
 
-    def _send_output(self, u1: float, u2: float) -> bool:
-        """Send (u1, u2) V to the valves and publish ~/applied_command if it changed; False if
-        no device was there to send it to (or the write failed)."""
-        changed = (u1, u2) != self._output
-        self._output = (u1, u2)
+    def _apply(self, action: Action) -> bool:
+        """Write the action's output to the valves and publish ~/applied_command if it changed;
+        False if there was nothing to write or no device to write it to (or the write failed).
+        The caller holds self._lock (the decision and its COMMAND frame are one step)."""
+        if action.output is None:
+            return False
+        u1, u2 = action.output
         with self._io_lock:
             seq = self._next_seq()
         sent = self._write(proto.command(seq, self.cal.dac_counts(u1), self.cal.dac_counts(u2)))
-        if changed:
+        if action.changed:
             msg = ValveCommand()
             msg.header.stamp = self.get_clock().now().to_msg()
             msg.header.frame_id = self._frame_id
@@ -199,66 +182,39 @@ class DriverNode(Node):
                 pass
         return sent
 
-    def _go_safe(self, reason: str, override: bool = False) -> None:
-        """safe_output now, disarmed (latched) until ~/arm. The reason reported is the first
-        one since the last arm, unless override (e-stop, shutdown)."""
+    def _decide(self, event: Callable[[], Action]) -> Action:
+        """One event through the core: decided and its output written under self._lock, then
+        its lines logged (outside the lock)."""
         with self._lock:
-            was_armed = self._armed
-            self._armed = False
-            if was_armed or override or not self._safe_reason:
-                self._safe_reason = reason
-            self._last_command_time = None
-            self._send_output(*self.config['safe_output'])
-        if was_armed or override:
-            self.get_logger().warning(f'safe output {list(self.config["safe_output"])} V: '
-                                      f'{reason}; call ~/arm to resume')
+            action = event()
+            self._apply(action)
+        # one call site per severity: rclpy refuses two severities from one line of code
+        logger = self.get_logger()
+        for log in action.logs:
+            if log.throttled:
+                self._log_nonfinite(log.text)
+            elif log.level == 'error':
+                logger.error(log.text)
+            elif log.level == 'warning':
+                logger.warning(log.text)
+            else:
+                logger.info(log.text)
+        return action
 
     # ------------------------------------------------------------------ ROS callbacks
     def _on_command(self, msg: ValveCommand) -> None:
-        u = (msg.u1, msg.u2)
-        if not all(math.isfinite(v) for v in u):
-            with self._lock:
-                self._commands_nonfinite += 1
-            self._log_nonfinite(f'non-finite valve_command {u} ignored')
-            return
-        low, high = self.config['valve_limits']
-        clipped = tuple(min(max(v, low), high) for v in u)
-        with self._lock:
-            self._commands += 1
-            if clipped != u:
-                self._commands_clipped += 1
-            if not self._armed or not self._connected:
-                self._commands_ignored += 1
-                return
-            self._last_command_time = time.monotonic()
-            self._send_output(*clipped)
-            if self._inject_at is None and self.config['inject_internal_error'] > 0.0:
-                self._inject_at = self._last_command_time + self.config['inject_internal_error']
+        action = self._decide(lambda: self._core.on_command(msg.u1, msg.u2, time.monotonic()))
+        if action.ok and self._inject_at is None and self.config['inject_internal_error'] > 0.0:
+            self._inject_at = time.monotonic() + self.config['inject_internal_error']
 
     def _on_arm(self, request, response):
-        with self._lock:
-            if not self._connected:
-                response.success, response.message = False, 'refused: device not connected'
-            elif self._sensor_fault:
-                response.success = False
-                response.message = f'refused: sensor fault: {self._sensor_fault}'
-            else:
-                previous = self._safe_reason
-                self._armed = True
-                self._safe_reason = ''
-                self._last_command_time = None
-                response.success = True
-                response.message = (f'armed (was safe: {previous or "-"}); the next valid '
-                                    'valve_command is applied')
-        self.get_logger().info(f'~/arm: {response.message}')
+        action = self._decide(self._core.on_arm)
+        response.success, response.message = action.ok, action.message
         return response
 
     def _on_estop(self, request, response):
-        with self._lock:
-            self._estops += 1
-        self._go_safe('e-stop (~/estop)', override=True)
-        response.success = True
-        response.message = f'safe output {list(self.config["safe_output"])} V; ~/arm to resume'
+        action = self._decide(self._core.on_estop)
+        response.success, response.message = action.ok, action.message
         return response
 
     # ------------------------------------------------------------------ serial thread
@@ -283,11 +239,8 @@ class DriverNode(Node):
                 self._incompatible = ''
                 self._warn_not_connected(backoff)
             except Exception as exc:  # noqa: BLE001 - never die: safe output, report, retry
-                with self._lock:
-                    self._internal_errors += 1
-                self._last_error = f'internal error: {type(exc).__name__}: {exc}'
-                self.get_logger().error(self._last_error)
-                self._go_safe(self._last_error)
+                error = self._last_error = f'internal error: {type(exc).__name__}: {exc}'
+                self._decide(lambda: self._core.on_internal_error(error))
             finally:
                 try:
                     self._disconnect()
@@ -300,7 +253,7 @@ class DriverNode(Node):
     def _warn_not_connected(self, backoff: float) -> None:
         """A failed connection attempt (port missing, no handshake): the node keeps retrying
         (the board may be plugged in later); say so on the console, at most every 10 s."""
-        if self._connected or self._stop.is_set():
+        if self._core.connected or self._stop.is_set():
             return   # lost while streaming: _disconnect() reports it
         self.get_logger().warning(
             f"cannot connect to {self.config['port']}: {self._last_error}; retrying in "
@@ -313,11 +266,11 @@ class DriverNode(Node):
         re-flashed or replaced). Nothing but HELLO was sent to it."""
         now = time.monotonic()
         say = why != self._incompatible or now - self._refused_logged >= REFUSED_LOG_PERIOD
-        with self._lock:
+
+        def refuse() -> Action:
             self._incompatible = why
-            self._armed = False
-            self._last_command_time = None
-            self._safe_reason = f'incompatible device: {why}'
+            return self._core.on_device_refused(why)
+        self._decide(refuse)
         text = (f"refusing the device on {self.config['port']}: {why}; not streaming, safe "
                 f'output, retrying in {backoff:g} s (up to every '
                 f'{self.config["reconnect_backoff"][1]:g} s)')
@@ -374,10 +327,8 @@ class DriverNode(Node):
         with self._lock:
             self._device = info
             self._incompatible = ''
-            self._connected = True
-            self._connects += 1
             # whatever the valves had before: start from the safe output
-            self._send_output(*self.config['safe_output'])
+            self._apply(self._core.on_connected())
         self._prev_angle = None
         self.get_logger().info(
             f'connected to {self.config["port"]}: protocol {info.major}.{info.minor}, '
@@ -386,10 +337,7 @@ class DriverNode(Node):
 
     def _disconnect(self) -> None:
         with self._lock:
-            was = self._connected
-            self._connected = False
-            if was:
-                self._disconnects += 1
+            was = self._core.on_disconnected()
         with self._io_lock:
             ser, self._serial = self._serial, None
         if ser is not None:
@@ -398,8 +346,8 @@ class DriverNode(Node):
             except Exception:  # noqa: BLE001
                 pass
         if was and not self._stop.is_set():
-            self.get_logger().error(f'device lost: {self._last_error}; reconnecting')
-            self._go_safe(f'device lost ({self._last_error})')
+            error = self._last_error
+            self._decide(lambda: self._core.on_device_lost(error))
 
     def _stream(self) -> None:
         ser = self._serial
@@ -431,7 +379,7 @@ class DriverNode(Node):
                 except proto.ProtocolError:
                     with self._lock:
                         self._protocol_errors += 1
-            self._check_watchdog(now)
+            self._decide(lambda: self._core.on_tick(now))
             if now >= next_heartbeat:
                 with self._io_lock:
                     seq = self._next_seq()
@@ -441,23 +389,10 @@ class DriverNode(Node):
             if now - last_sample > self.config['stream_timeout']:
                 raise DeviceLost(f'no sample for {self.config["stream_timeout"] * 1e3:g} ms')
 
-    def _check_watchdog(self, now: float) -> None:
-        timeout = self.config['watchdog_timeout']
-        if timeout <= 0.0:
-            return
-        with self._lock:
-            last = self._last_command_time
-            if not self._armed or last is None or now - last <= timeout:
-                return
-            self._watchdog_trips += 1
-            self._last_trip_ms = (now - last) * 1e3
-            since = self._last_trip_ms
-        self._go_safe(f'command watchdog: no valve_command for {since:.1f} ms')
-
     def _on_sample(self, s: proto.Sample, now: float) -> None:
         cal = self.cal
         p = (cal.pressure(0, s.adc_p1), cal.pressure(1, s.adc_p2))
-        self._check_sensors((s.adc_p1, s.adc_p2), p, now)
+        self._decide(lambda: self._core.on_sample((s.adc_p1, s.adc_p2), p, now))
         stamp = self.get_clock().now().to_msg()
         msg = Pressures()
         msg.header.stamp = stamp
@@ -482,33 +417,6 @@ class DriverNode(Node):
             self._samples += 1
             self._vents.on_sample(s.status)
 
-    def _check_sensors(self, counts, pressures, now: float) -> None:
-        low, high = self.config['pressure_limits']
-        stuck_time = self.config['stuck_time']
-        problems = []
-        for i in (0, 1):
-            ok = self.cal.pressure_volts_valid(i, counts[i]) and low <= pressures[i] <= high
-            self._out_of_range_run[i] = 0 if ok else self._out_of_range_run[i] + 1
-            if self._out_of_range_run[i] >= OUT_OF_RANGE_SAMPLES:
-                problems.append(f'P{i + 1} out of range ({pressures[i]:.0f} Pa, '
-                                f'{self.cal.adc_volts(counts[i]):.3f} V)')
-            last = self._stuck[i]
-            if counts[i] != last[0]:
-                last[0], last[1] = counts[i], now
-            elif stuck_time > 0.0 and now - last[1] >= stuck_time:
-                problems.append(f'P{i + 1} stuck at {counts[i]} counts for '
-                                f'{now - last[1]:.2f} s')
-        fault = '; '.join(problems)
-        if fault and not self._sensor_fault:
-            with self._lock:
-                self._sensor_faults += 1
-            self.get_logger().error(f'pressure sensor fault: {fault}')
-        elif self._sensor_fault and not fault:
-            self.get_logger().info('pressure sensors plausible again; ~/arm to resume')
-        self._sensor_fault = fault
-        if fault and (self._armed or self._output != tuple(self.config['safe_output'])):
-            self._go_safe(f'pressure sensor fault: {fault}')
-
     # ------------------------------------------------------------------ shutdown
     def stop(self) -> None:
         """Safe output to the device, stop the reader thread, close the port (the reader thread
@@ -516,9 +424,7 @@ class DriverNode(Node):
         sent = False
         try:
             with self._lock:
-                self._armed = False
-                self._safe_reason = 'shutdown'
-                sent = self._send_output(*self.config['safe_output'])
+                sent = self._apply(self._core.on_shutdown())
         except Exception:  # noqa: BLE001 - shutting down: do what can be done
             pass
         self._stop.set()
@@ -534,19 +440,20 @@ class DriverNode(Node):
     def _report(self):
         window = self._stats.window(time.monotonic())
         d = self._decoder
+        core = self._core
         with self._lock:
             info = self._device
             values = {
                 'port': self.config['port'],
-                'connected': self._connected,
+                'connected': core.connected,
                 'device protocol': f'{info.major}.{info.minor}' if info else 'none',
                 'encoder fitted': bool(info and info.has_encoder),
                 'torque meter fitted': bool(info and info.has_torque),
                 'achieved rate (Hz)': window.achieved_rate if window.samples else 0.0,
                 'samples received': self._samples,
-                'connects': self._connects,
-                'reconnects': max(self._connects - 1, 0),
-                'disconnects': self._disconnects,
+                'connects': core.connects,
+                'reconnects': max(core.connects - 1, 0),
+                'disconnects': core.disconnects,
                 'handshake failures': self._handshake_failures,
                 'device refused': self._incompatible or 'none',
                 'crc errors': d.crc_errors,
@@ -554,21 +461,8 @@ class DriverNode(Node):
                 'lost frames': self._rx_seq.lost,
                 'sequence gaps': self._rx_seq.gaps,
                 'protocol errors': self._protocol_errors,
-                'internal errors': self._internal_errors,
-                'armed': self._armed,
-                'safe reason': self._safe_reason or 'none',
-                'output u1 (V)': self._output[0],
-                'output u2 (V)': self._output[1],
-                'watchdog timeout (ms)': self.config['watchdog_timeout'] * 1e3,
-                'watchdog trips': self._watchdog_trips,
-                'last watchdog trip after (ms)': self._last_trip_ms,
-                'e-stops': self._estops,
-                'sensor fault': self._sensor_fault or 'none',
-                'sensor faults': self._sensor_faults,
-                'commands received': self._commands,
-                'commands clipped': self._commands_clipped,
-                'non-finite commands': self._commands_nonfinite,
-                'commands ignored (safe)': self._commands_ignored,
+                'internal errors': core.internal_errors,
+                **core.report_values(),
                 'last error': self._last_error or 'none',
                 'board vents': self._vents.count,
                 'board vented now': self._vents.vented,
@@ -579,7 +473,8 @@ class DriverNode(Node):
                 rx, crc, trips, _ = self._device_heartbeat
                 values.update({'device rx frames': rx, 'device rx crc errors': crc,
                                'device watchdog trips': trips})
-            connected, armed, fault = self._connected, self._armed, self._sensor_fault
+            connected, armed, fault = core.connected, core.armed, core.sensor_fault
+            safe_reason = core.safe_reason
         counters = ('crc errors', 'garbage bytes', 'lost frames', 'protocol errors',
                     'commands clipped', 'non-finite commands', 'disconnects')
         vents = values['board vents'] - self._reported.get('board vents', 0)
@@ -598,7 +493,7 @@ class DriverNode(Node):
             problems.append(f'pressure sensor fault: {fault}')
         if not armed:
             level = max(level, WARN)
-            problems.append(f'safe output: {self._safe_reason}')
+            problems.append(f'safe output: {safe_reason}')
         if vents:
             # the valves were at 0 V for a while whatever the driver commanded: while armed,
             # the control was not applied
