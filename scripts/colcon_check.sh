@@ -10,18 +10,20 @@
 # What differs from an apt install, and why:
 #   - pam_interfaces is configured with -DCMAKE_PROJECT_INCLUDE=scripts/cmake/fix_wheel_python_
 #     includes.cmake (the message wheels export the wheel builder's /opt/python include paths);
-#   - LD_LIBRARY_PATH is set here, once, in a fixed order (the wheels' bootstrapper would set it
-#     in each interpreter in set order: the workspace's pam_interfaces libraries first is not
-#     guaranteed then), with _ROS_WHEELS_BOOTSTRAP_COMPLETE=1;
-#   - PYTHONSAFEPATH=1: `python -m pytest` does not put the package's source folder first on
-#     sys.path, so the tests import what colcon installed (build/colcon_ws/install), as the nodes
-#     they start do.
+#     colcon warns that .venv (on AMENT_PREFIX_PATH) has no local_setup.* files: expected, the
+#     venv is a pip install, not a colcon prefix;
+#   - LD_LIBRARY_PATH is set here, once, in a fixed order, with _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+#     (the wheels' bootstrapper would rebuild it in each interpreter in set order, so the
+#     workspace's pam_interfaces libraries would not always come before the venv's copies);
+#   - PYTHONSAFEPATH=1 (Python >= 3.11): `python -m pytest` in a package folder does not put
+#     that folder first on sys.path, so the tests import what colcon installed
+#     (build/colcon_ws/install), as the nodes they start do (with 3.10: the package's sources).
 # colcon picks pytest from setup.py's extras_require={'test': ['pytest']} (tests_require, which
 # setuptools >= 72 ignores, made it fall back to unittest and run no test); a package whose tests
 # did not run through pytest, or ran none, fails the check.
 # pytest runs in each package folder of this checkout, so pytest.ini and conftest.py of the
-# repository root apply (timeout 300, -ra, --repeat). The workspace stays between runs: colcon
-# rebuilds only what changed (pam_interfaces' C/C++ once, a few minutes; then seconds).
+# repository root apply (timeout 300, -ra, --repeat N). The workspace stays between runs: colcon
+# rebuilds only what changed (pam_interfaces' C/C++: about 25 s on an idle machine, once).
 # Environment: COLCON_WS (default build/colcon_ws).
 set -euo pipefail
 
@@ -42,7 +44,7 @@ while (($#)); do
 done
 
 [[ -x "$VPY" ]] || die ".venv is missing: run scripts/setup.sh (or make setup) first"
-COLCON="${COLCON:-$VENV/bin/colcon}"
+COLCON="$VENV/bin/colcon"
 [[ -x "$COLCON" ]] || die "colcon is not in .venv: run scripts/setup.sh (or make setup)"
 
 # An outer ROS environment (a sourced /opt/ros/jazzy or another workspace) must not leak in.
@@ -91,7 +93,7 @@ t0=$SECONDS
 rc=0
 colcon test --base-paths "$ROOT" "${selection[@]}" --executor sequential \
   --event-handlers console_cohesion+ ${spaced[@]+--pytest-args "${spaced[@]}"} || rc=$?
-say "tests done in $((SECONDS - t0)) s"
+say "tests done in $((SECONDS - t0)) s (build, warm-up and tests: $SECONDS s)"
 colcon test-result --test-result-base "$WS/build" --verbose || rc=1
 
 # Every Python package ran its tests through pytest (a pytest.xml), and at least one unless
