@@ -33,8 +33,10 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .mcap_check import (MCAP_MAGIC, RECORD_HEAD, FileCheck, check_file, chunk_records,
-                         records, summary_problem)
+from .mcap_check import (CHUNK, DATA_END, FOOTER, MCAP_MAGIC, RECORD_HEAD, FileCheck, check_file,
+                         chunk_records, records, summary_problem)
+from .mcap_records import (CHANNEL, MESSAGE, SCHEMA, file_summary, metadata_records,
+                           parse_record, read_summary)
 
 METADATA = 'metadata.yaml'
 DEFAULT_CHUNK_INTERVAL = 1.0   # s: longest time a received message stays only in memory
@@ -662,13 +664,11 @@ def check_mcap(path) -> None:
         raise BagError(f'{path}: truncated or corrupt MCAP file (no footer: the recording was '
                        'cut short or the file was damaged; pam-bag-recover keeps what is readable)')
     try:
-        from mcap.reader import make_reader
         with path.open('rb') as f:
             problem = summary_problem(f, size)
             if problem:
                 raise ValueError(problem)
-            f.seek(0)
-            summary = make_reader(f).get_summary()
+            summary = read_summary(f, size)
         if summary is None:
             raise ValueError('no summary section')
     except Exception as exc:  # noqa: BLE001
@@ -757,11 +757,9 @@ def recorded_types(files) -> list[tuple[Path, str, str, str]]:
     """(file, topic, type, RIHS01 hash) of every channel of the .mcap `files` (read from their
     summaries): the channel's topic_type_hash, else the hash of the schema's embedded ros2msg
     definition (a bag of a rosbag2 older than Jazzy has no hashes); '' if neither."""
-    from mcap.reader import make_reader
     found = []
     for path in files:
-        with Path(path).open('rb') as stream:
-            summary = make_reader(stream).get_summary()
+        summary = file_summary(path)
         for channel in summary.channels.values():
             schema = summary.schemas.get(channel.schema_id)
             found.append((Path(path), channel.topic, schema.name if schema else '',
@@ -884,10 +882,9 @@ def load_bag(path, topics=None, start_offset: float = 0.0,
 def embedded_metadata(mcap_path) -> dict:
     """The bag metadata rosbag2 also stores in the MCAP file (its 'rosbag2' metadata record,
     key serialized_metadata: the metadata.yaml content); {} if there is none."""
-    from mcap.reader import make_reader
     from ruamel.yaml import YAML
     with open(mcap_path, 'rb') as f:
-        for record in make_reader(f).iter_metadata():
+        for record in metadata_records(f, os.fstat(f.fileno()).st_size):
             if record.name == 'rosbag2' and 'serialized_metadata' in record.metadata:
                 return YAML(typ='safe').load(record.metadata['serialized_metadata'])
     return {}
@@ -901,11 +898,8 @@ def bag_info(path) -> dict:
     files = [path / f for f in meta['relative_file_paths']]
     duration = meta['duration']['nanoseconds'] * 1e-9
     chunk_compression = set()
-    from mcap.reader import make_reader
     for f in files:
-        with f.open('rb') as stream:
-            summary = make_reader(stream).get_summary()
-        chunk_compression |= {c.compression or 'none' for c in summary.chunk_indexes}
+        chunk_compression |= {c.compression or 'none' for c in file_summary(f).chunk_indexes}
     topics = []
     for entry in meta['topics_with_message_count']:
         tm = entry['topic_metadata']
@@ -983,16 +977,9 @@ def first_problems(problems: list, limit: int = 3) -> list:
 def _parse_records(opcode: int, body: bytes) -> tuple[str, list]:
     """(chunk compression or None, the schema/channel/message records) of one record; a chunk
     is checked and unpacked by mcap_check.chunk_records."""
-    from io import BytesIO
-
-    from mcap.data_stream import ReadDataStream
-    from mcap.opcode import Opcode
-    from mcap.records import Channel, Message, Schema
-    if opcode != Opcode.CHUNK:
-        readers = {Opcode.SCHEMA: Schema.read, Opcode.CHANNEL: Channel.read,
-                   Opcode.MESSAGE: lambda s: Message.read(s, len(body))}
-        return None, ([readers[opcode](ReadDataStream(BytesIO(body)))] if opcode in readers
-                      else [])
+    if opcode != CHUNK:
+        record = parse_record(opcode, body) if opcode in (SCHEMA, CHANNEL, MESSAGE) else None
+        return None, [record] if record is not None else []
     compression, inner = chunk_records(body)
     return compression, [r for _, op, b in inner for r in _parse_records(op, b)[1]]
 
@@ -1114,10 +1101,10 @@ def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
     """The messages of one crashed .mcap into the bag being rebuilt, into an output file of
     the source's name: a new one if the bag's holds messages already, else that one
     renamed."""
-    from mcap.opcode import Opcode
-    from mcap.records import Channel, Message, Schema
     from rosbags.rosbag2.metadata import parse_qos
     from rosbags.typesys import get_types_from_msg
+
+    from .mcap_records import Channel, Message, Schema
 
     size = source.stat().st_size
     writer = state.writer
@@ -1132,7 +1119,7 @@ def _rewrite_file(source: Path, state: _Rebuild, result: Recovery) -> None:
         end = len(MCAP_MAGIC)
         for offset, opcode, body in records(f, size):
             end = offset + RECORD_HEAD.size + len(body)
-            if opcode in (Opcode.FOOTER, Opcode.DATA_END):   # the summary follows
+            if opcode in (FOOTER, DATA_END):   # the summary follows
                 end = size
                 break
             try:

@@ -1,4 +1,5 @@
-"""MCAP files read record by record, with every check a reader can make (no rosbags, no rclpy).
+"""MCAP files read record by record, with every check a reader can make (no rclpy; chunks are
+decompressed with rosbags' decompressors).
 
 records() walks a file's (or a chunk's) records; chunk_records() unpacks a Chunk record and
 checks it: its data decompress to its uncompressed_size, give its uncompressed_crc and are
@@ -40,24 +41,47 @@ def chunk_records(body: bytes) -> tuple[str, list]:
     ValueError if its data do not decompress to its uncompressed_size, do not give its
     uncompressed_crc (0: not computed, not checked) or are not complete records."""
     from io import BytesIO
-
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import Chunk
-    from mcap.stream_reader import get_chunk_data_stream
-    chunk = Chunk.read(ReadDataStream(BytesIO(body)))
-    data_stream, size = get_chunk_data_stream(chunk)
-    if size != chunk.uncompressed_size:
-        raise ValueError(f'{size} bytes uncompressed, the chunk says {chunk.uncompressed_size}')
-    data = data_stream.read(size)
+    compression, uncompressed_size, uncompressed_crc, compressed = _chunk_fields(body)
+    data = decompress(compressed, compression, uncompressed_size)
+    size = len(data)
+    if size != uncompressed_size:
+        raise ValueError(f'{size} bytes uncompressed, the chunk says {uncompressed_size}')
     crc = zlib.crc32(data)
-    if chunk.uncompressed_crc and crc != chunk.uncompressed_crc:
+    if uncompressed_crc and crc != uncompressed_crc:
         raise ValueError(f'CRC mismatch: its records give {crc:#010x}, the chunk says '
-                         f'{chunk.uncompressed_crc:#010x}')
+                         f'{uncompressed_crc:#010x}')
     inner = list(records(BytesIO(data), size))
     end = inner[-1][0] + RECORD_HEAD.size + len(inner[-1][2]) if inner else 0
     if end != size:
         raise ValueError(f'invalid record at byte {end} of the uncompressed chunk')
-    return chunk.compression, inner
+    return compression, inner
+
+
+def _chunk_fields(body: bytes) -> tuple[str, int, int, bytes]:
+    """(compression, uncompressed_size, uncompressed_crc, compressed records) of a Chunk
+    record's body; ValueError if it is too short for them."""
+    if len(body) < _CHUNK_HEAD.size + 4:
+        raise ValueError(f'chunk record of {len(body)} bytes: too short')
+    _, _, uncompressed_size, uncompressed_crc = _CHUNK_HEAD.unpack_from(body)
+    pos = _CHUNK_HEAD.size
+    (length,) = struct.unpack_from('<I', body, pos)
+    compression = body[pos + 4:pos + 4 + length].decode()
+    pos += 4 + length
+    if pos + 8 > len(body):
+        raise ValueError(f'chunk record of {len(body)} bytes: too short')
+    (records_size,) = struct.unpack_from('<Q', body, pos)
+    if pos + 8 + records_size > len(body):
+        raise ValueError(f'chunk records of {records_size} bytes past the record\'s end')
+    return compression, uncompressed_size, uncompressed_crc, body[pos + 8:pos + 8 + records_size]
+
+
+def decompress(data: bytes, compression: str, uncompressed_size: int) -> bytes:
+    """A chunk's records, decompressed ('', 'zstd' or 'lz4': the decompressors of rosbags'
+    MCAP reader); ValueError for another compression."""
+    from rosbags.rosbag2.storage_mcap import DECOMPRESSORS
+    if compression not in DECOMPRESSORS:
+        raise ValueError(f'unsupported chunk compression {compression!r}')
+    return DECOMPRESSORS[compression](data, uncompressed_size)
 
 
 def summary_problem(f, size: int) -> str:

@@ -17,22 +17,18 @@ def damage_chunk(mcap, index: int, nbytes: int = 8) -> int:
     the first flipped byte."""
     import io
 
-    from mcap.reader import make_reader
-
-    from pam_bag.mcap_check import RECORD_HEAD, records
+    from pam_bag.mcap_check import RECORD_HEAD, decompress, records
+    from pam_bag.mcap_records import file_summary
     mcap = Path(mcap)
-    with mcap.open('rb') as f:
-        chunk = make_reader(f).get_summary().chunk_indexes[index]
+    chunk = file_summary(mcap).chunk_indexes[index]
     data = bytearray(mcap.read_bytes())
     end = chunk.chunk_start_offset + chunk.chunk_length
     start = end - chunk.compressed_size
 
     def unpack(compressed: bytes) -> bytes | None:
-        import zstandard
         try:
-            out = (zstandard.decompress(compressed, max_output_size=chunk.uncompressed_size)
-                   if chunk.compression == 'zstd' else compressed)
-        except zstandard.ZstdError:
+            out = decompress(compressed, chunk.compression, chunk.uncompressed_size)
+        except Exception:  # noqa: BLE001 - the decompressor noticed the damage
             return None
         inner = list(records(io.BytesIO(out), len(out)))
         framed = inner and inner[-1][0] + RECORD_HEAD.size + len(inner[-1][2]) == len(out)

@@ -51,6 +51,11 @@ ROS_PACKAGES = frozenset({
     'std_msgs', 'std_srvs'})
 #: Declared for the build or the layout, never imported: no use to find in the code.
 TOOL_KEYS = frozenset({'ament_cmake', 'rosidl_default_generators', 'rosidl_default_runtime'})
+#: Calls that run a package's executable or read its installed files, given the package's name.
+RUNS_OR_FINDS = frozenset({
+    'node_process', 'NodeProcess', 'executable', 'find_executable', 'installed_config',
+    'assert_node_refuses_params_file', 'Node', 'NodeSpec', 'FindPackageShare',
+    'get_package_share_directory', 'get_package_prefix'})
 TEST_SUPPORT = 'testing.py'     # a package's test support module: tests only import it
 NOT_SCANNED = {'setup.py'}      # build files: setuptools is the build type's, not a dependency
 
@@ -98,19 +103,20 @@ def support_imports(tree: ast.AST) -> set[str]:
 
 
 def named_packages(tree: ast.AST) -> set[str]:
-    """Workspace packages the code names to run them or find their files: a string constant
-    equal to a package name given as a call argument (`node_process('sim_node', 'pam_driver')`,
-    `Node(package='pam_driver')`), joined into a path (`prefix / 'share' / 'pam_interfaces'`)
-    or inside a module-level assignment (a node table)."""
+    """Workspace packages the code runs or whose installed files it reads: a string constant
+    equal to a package name given to a call of RUNS_OR_FINDS (`node_process('sim_node',
+    'pam_driver')`, `Node(package='pam_driver')`, `get_package_share_directory(...)`) or joined
+    into an installed path after 'share' or 'lib' (`prefix / 'share' / 'pam_interfaces'`).
+    Names held as data (tests reading the source tree) do not count."""
     values = []
     for node in ast.walk(tree):
-        if isinstance(node, ast.Call):
+        if isinstance(node, ast.Call) and (getattr(node.func, 'id', None) or
+                                           getattr(node.func, 'attr', None)) in RUNS_OR_FINDS:
             values += [*node.args, *(k.value for k in node.keywords)]
-        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div):
-            values += [node.left, node.right]
-    for node in getattr(tree, 'body', []):
-        if isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None:
-            values += list(ast.walk(node.value))
+        elif (isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div)
+              and isinstance(node.left, ast.BinOp) and isinstance(node.left.right, ast.Constant)
+              and node.left.right.value in ('share', 'lib')):
+            values.append(node.right)
     return {v.value for v in values
             if isinstance(v, ast.Constant) and isinstance(v.value, str)} & WORKSPACE
 
@@ -236,29 +242,48 @@ def test_installed_code_never_imports_test_support(folder):
     assert not found, '\n'.join(found)
 
 
-def test_dependencies_have_no_cycle():
-    """colcon orders the workspace by every dependency of a package (test ones too) and the run
-    dependencies of those: a test of pam_controller that runs pam-bringup (which runs pi_node)
-    would make pam_controller and pam_bringup each wait for the other."""
-    direct, run = {}, {}
-    for folder in PACKAGES:
-        from catkin_pkg.package import parse_package
-        package = parse_package(folder / 'package.xml')
-        every = [*package.build_depends, *package.buildtool_depends, *package.exec_depends,
-                 *package.test_depends, *package.build_export_depends]
-        direct[folder.name] = {d.name for d in every} & WORKSPACE
-        run[folder.name] = {d.name for d in package.exec_depends} & WORKSPACE
-    cycles = []
-    for name in sorted(WORKSPACE):
-        seen, queue = set(), list(direct[name])
+def colcon_order_problems(packages) -> list[str]:
+    """What colcon would refuse to order: it makes a package wait for its direct dependencies of
+    every kind (test ones too) and, from there on, their exec dependencies (recursively); two
+    packages that wait for each other are a cycle. `packages`: the parsed package.xml files."""
+    def names(deps):
+        return {d.name for d in deps} & {p.name for p in packages}
+    direct = {p.name: names([*p.build_depends, *p.buildtool_depends, *p.exec_depends,
+                             *p.test_depends]) for p in packages}
+    run = {p.name: names(p.exec_depends) for p in packages}
+    waits = {}
+    for name, queue in direct.items():
+        seen, queue = set(), list(queue)
         while queue:
             dep = queue.pop()
             if dep not in seen and dep != name:
                 seen.add(dep)
                 queue += run[dep]
-        cycles += [f'{name} -> {dep} -> ... -> {name}' for dep in sorted(seen)
-                   if name in direct[dep] or any(name in run[d] for d in [dep])]
-    assert not cycles, '\n'.join(cycles)
+        waits[name] = seen
+    return [f'{a} and {b} wait for each other (a test or exec dependency of one on the other)'
+            for a in sorted(waits) for b in sorted(waits[a]) if a < b and a in waits[b]]
+
+
+def test_colcon_can_order_the_packages():
+    """A test of pam_controller that ran pam-bringup (which runs pi_node) would make
+    pam_controller and pam_bringup each wait for the other: colcon stops with 'Unable to order
+    packages topologically'."""
+    from catkin_pkg.package import parse_package
+    problems = colcon_order_problems([parse_package(p / 'package.xml') for p in PACKAGES])
+    assert not problems, '\n'.join(problems)
+
+
+def test_the_order_check_finds_a_test_dependency_cycle():
+    from catkin_pkg.package import Dependency, Package
+    controller = Package(name='controller', exec_depends=[Dependency('estimator')],
+                         test_depends=[Dependency('bringup')])
+    bringup = Package(name='bringup', exec_depends=[Dependency('controller')])
+    estimator = Package(name='estimator')
+    assert colcon_order_problems([controller, bringup, estimator]) == [
+        'bringup and controller wait for each other (a test or exec dependency of one on the '
+        'other)']
+    controller.test_depends = []
+    assert colcon_order_problems([controller, bringup, estimator]) == []
 
 
 # --------------------------------------------------------------------- the check itself
@@ -303,8 +328,8 @@ def test_the_check_sorts_test_imports_and_finds_unused_keys(tmp_path):
         'pam_demo/__init__.py': 'import numpy\n',
         'pam_demo/testing.py': 'import pytest\n',
         'test/test_a.py': 'import yaml\nimport test_b\nfrom pam_demo import testing\n',
-        'test/test_b.py': 'import mcap_ros2\nimport somethingelse\n'
-                          'def test_x(node_process):\n    node_process("sim_node", "pam_driver")\n'})
+        'test/test_b.py': 'import mcap_ros2\nimport somethingelse\n\n\ndef test_x(node_process):\n'
+                          '    node_process("sim_node", "pam_driver")\n'})
     problems = manifest_problems(folder)
     assert problems == [
         'pam_demo/test/test_b.py: import somethingelse: no rosdep key known (add the module to '
