@@ -6,6 +6,8 @@
 #
 #   scripts/colcon_check.sh [colcon package selection for the tests] [-- pytest arguments]
 #   e.g. scripts/colcon_check.sh --packages-select pam_model -- -k valve -x
+# pytest runs in each package's folder: a test file is given relative to it
+# (--packages-select pam_model -- test/test_signals.py).
 # Every package is built whatever the selection (seconds when little changed): tests run nodes of
 # other packages, and those come from the workspace.
 #
@@ -61,6 +63,9 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST
 
 mkdir -p "$WS"
 cd "$WS"
+# One run per workspace at a time (two at once would build into the same folders).
+exec 8>"$WS/.colcon_check.lock"
+flock -n 8 || { say "waiting for another colcon_check run on ${WS#"$ROOT"/}..."; flock 8; }
 colcon() { "$COLCON" --log-base "$WS/log" "$@"; }
 
 say "colcon build in ${WS#"$ROOT"/} (sources: $ROOT)..."
