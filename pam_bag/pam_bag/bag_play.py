@@ -40,11 +40,12 @@ from rclpy.task import Future
 
 from pam_bag.bag_record import message_class, split_list
 from pam_bag.bags import EXIT_BAD_INPUT, BagError, open_bag
-from pam_common.executors import run_node
-from pam_common.stamps import ns_pair
 from pam_bag.read_ahead import END, ReadAhead
-from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
-                                    merge_overrides, usage_text, wants_help)
+from pam_common.node_params import ConfigError, ParamSpec, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import CLOCK_QOS
+from pam_common.stamps import ns_pair
+from pam_common.topics import CLOCK
 
 NODE_NAME = 'bag_play'
 SPIN_AHEAD = 0.0005   # s: sleep until this close to a deadline, then busy-wait
@@ -99,8 +100,7 @@ def parse_remap(text: str) -> dict[str, str]:
 class BagPlayer(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
-                                                       declare_parameters(self, PARAMETERS)))
+        values = parameter_values(self, PARAMETERS)
         self.values = values
         if not values['bag']:
             raise ConfigError("parameter 'bag': give the bag directory (-p bag:=PATH)")
@@ -128,7 +128,7 @@ class BagPlayer(Node):
         self.clock_pub = None
         if values['clock'] > 0.0:
             from rosgraph_msgs.msg import Clock
-            self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+            self.clock_pub = self.create_publisher(Clock, CLOCK, CLOCK_QOS)
             self._clock_msg = Clock
         from std_srvs.srv import Trigger
         self.create_service(Trigger, '~/resume', self._on_resume)
@@ -350,15 +350,11 @@ class BagPlayer(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
-            f'{NODE_NAME} --ros-args -p bag:=out/run1',
-            f'{NODE_NAME} --ros-args -p bag:=out/run1 -p rate:=2.0 -p loop:=true '
-            "-p topics:=/pam/pressures -p remap:=/pam/pressures:=/replay/pressures",
-        ]))
-        return 0
-    return run_node(BagPlayer, NODE_NAME, args)
+    return node_main(BagPlayer, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+        f'{NODE_NAME} --ros-args -p bag:=out/run1',
+        f'{NODE_NAME} --ros-args -p bag:=out/run1 -p rate:=2.0 -p loop:=true '
+        "-p topics:=/pam/pressures -p remap:=/pam/pressures:=/replay/pressures",
+    ]), args)
 
 
 if __name__ == '__main__':

@@ -28,10 +28,9 @@ from rclpy.task import Future
 
 from pam_bag.bags import (BagError, BagWriteError, BagWriter, check_split, known_type,
                              qos_from_ints)
-from pam_common.executors import run_node
+from pam_common.node_params import ConfigError, ParamSpec, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.stamps import ns_pair
-from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
-                                    merge_overrides, usage_text, wants_help)
 
 NODE_NAME = 'bag_record'
 SUB_DEPTH = 1000
@@ -92,8 +91,7 @@ class BagRecorder(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
-                                                       declare_parameters(self, PARAMETERS)))
+        values = parameter_values(self, PARAMETERS)
         self.values = values
         output = values['output'] or datetime.datetime.now().strftime(
             'rosbag2_%Y_%m_%d-%H_%M_%S')
@@ -229,15 +227,11 @@ class BagRecorder(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
-            f'{NODE_NAME} --ros-args -p output:=out/run1',
-            f"{NODE_NAME} --ros-args -p output:=out/run2 -p topics:=/pam/pressures,/pam/estimate",
-            f'{NODE_NAME} --ros-args -p output:=out/run3 -p max_bag_size:=4000000',
-        ]))
-        return 0
-    return run_node(BagRecorder, NODE_NAME, args)
+    return node_main(BagRecorder, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+        f'{NODE_NAME} --ros-args -p output:=out/run1',
+        f"{NODE_NAME} --ros-args -p output:=out/run2 -p topics:=/pam/pressures,/pam/estimate",
+        f'{NODE_NAME} --ros-args -p output:=out/run3 -p max_bag_size:=4000000',
+    ]), args)
 
 
 if __name__ == '__main__':

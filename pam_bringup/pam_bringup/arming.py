@@ -14,6 +14,8 @@ import math
 import threading
 import time
 
+from pam_common.topics import VALVE_COMMAND
+
 from .stack import RIGS
 from .supervisor import READER_JOIN, Output
 
@@ -72,6 +74,8 @@ class DriverArmer:
     def _arm(self, node, executor) -> None:
         from pam_interfaces.msg import ValveCommand
         from std_srvs.srv import Trigger
+
+        from pam_common.qos import LATEST_QOS
         steady = {'since': None, 'last': -math.inf}
 
         def on_command(_msg) -> None:
@@ -80,7 +84,7 @@ class DriverArmer:
                 steady['since'] = now
             steady['last'] = now
 
-        node.create_subscription(ValveCommand, 'valve_command', on_command, 10)
+        node.create_subscription(ValveCommand, VALVE_COMMAND, on_command, LATEST_QOS)
         client = node.create_client(Trigger, ARM_SERVICE)
         service = f'{node.get_namespace().rstrip("/")}/{ARM_SERVICE}'
         deadline = time.monotonic() + ARM_TIMEOUT

@@ -21,19 +21,19 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from pam_common.diagnostics import status_values
 from pam_common.executors import make_executor
+from pam_common.qos import SAMPLE_QOS
 from pam_common.stamps import stamp_ns
+from pam_common.topics import DIAGNOSTICS, JOINT_MEASURED, REFERENCE, absolute
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
 from pam_interfaces.msg import JointMeasurement, Reference
 
-from .stack import DEFAULT_NAMESPACE, locate_executables, stack_nodes
+from .stack import locate_executables, stack_nodes
 from .supervisor import Child, Output, Supervisor, child_environment
 
-QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 SPIN_SLICE = 0.2    # s, the spin thread checks for the end this often
 POLL = 0.2          # s, the waiting thread checks for dead nodes this often
 LOG_TAIL = 1500     # characters of each node's last output in an error
@@ -73,12 +73,11 @@ class _ReferenceNode:
         self._mode = Reference.TORQUE if torque else Reference.ANGLE
         self.context = context
         self.node = rclpy.create_node('lockstep_reference', context=context)
-        self._reference = self.node.create_publisher(Reference,
-                                                     f'{DEFAULT_NAMESPACE}/reference', QOS)
-        self.node.create_subscription(JointMeasurement, f'{DEFAULT_NAMESPACE}/joint_measured',
-                                      self._on_truth, QOS)
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
-                                      QOS)
+        self._reference = self.node.create_publisher(Reference, absolute(REFERENCE), SAMPLE_QOS)
+        self.node.create_subscription(JointMeasurement, absolute(JOINT_MEASURED),
+                                      self._on_truth, SAMPLE_QOS)
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics,
+                                      SAMPLE_QOS)
         self._executor = make_executor(events=True, context=context)
         self._executor.add_node(self.node)
         self._finished = Future()

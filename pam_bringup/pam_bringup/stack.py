@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pam_common.executables import executable_candidates, find_executable
+from pam_common.topics import DEFAULT_NAMESPACE  # noqa: F401 - re-exported for the launch file
 
 PACKAGE = 'pam_bringup'
-DEFAULT_NAMESPACE = '/pam'
 
 
 @dataclass(frozen=True)

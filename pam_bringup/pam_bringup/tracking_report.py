@@ -15,20 +15,18 @@ from bisect import bisect_right
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
-from pam_common.executors import run_node
-from pam_common.node_params import (ParamSpec, check_all, declare_parameters,
-                                    merge_overrides, usage_text, wants_help)
+from pam_common.node_params import ParamSpec, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import SAMPLE_QOS
 from pam_common.stamps import stamp_ns
+from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, REFERENCE, VALVE_COMMAND
 
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
 
 NODE_NAME = 'tracking_report'
-QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                 depth=100)
 PARAMETERS = (
     ParamSpec('duration', 64.0, 'double', 's', 'How long to record after the first reference.',
               range=(1.0, 86400.0)),
@@ -44,20 +42,19 @@ SUMMARY = ['Closed-loop tracking report (pam_controller): records reference, joi
 
 class TrackingReport(Node):
     def __init__(self, **kwargs):
-        kwargs.setdefault('namespace', '/pam')
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
-                                                            declare_parameters(self, PARAMETERS)))
+        self.values = parameter_values(self, PARAMETERS)
         self.references = []        # (stamp ns, mode, value), in arrival order
         self.truth = {}             # stamp -> (angle, torque)
         self.estimates = {}         # stamp -> (angle, torque)
         self.commands = {}          # stamp -> (u1, u2)
         self.first_ns = None
         self.finished = Future()
-        self.create_subscription(Reference, 'reference', self._on_reference, QOS)
-        self.create_subscription(JointMeasurement, 'joint_measured', self._on_truth, QOS)
-        self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
-        self.create_subscription(ValveCommand, 'valve_command', self._on_command, QOS)
+        self.create_subscription(Reference, REFERENCE, self._on_reference, SAMPLE_QOS)
+        self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, SAMPLE_QOS)
+        self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
+        self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
         self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
         self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
                                'first reference')
@@ -172,11 +169,7 @@ def plot_tracking(t, reference, measured, estimate, commands, unit, path):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS))
-        return 0
-    return run_node(TrackingReport, NODE_NAME, args)
+    return node_main(TrackingReport, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS), args)
 
 if __name__ == '__main__':
     sys.exit(main())

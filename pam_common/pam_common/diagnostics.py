@@ -23,6 +23,8 @@ from typing import Callable, Mapping
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from .topics import DIAGNOSTICS
+
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
 ERROR = DiagnosticStatus.ERROR
@@ -32,7 +34,7 @@ LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 _LEVELS_BY_NAME = {name: level for level, name in LEVEL_NAMES.items()}
 _LEVELS_BY_NAME['WARNING'] = WARN
 
-DIAGNOSTICS_TOPIC = '/diagnostics'
+DIAGNOSTICS_TOPIC = DIAGNOSTICS
 NOT_AVAILABLE = 'n/a'     # the text of a non-finite value (format_value)
 
 

@@ -412,3 +412,34 @@ def assert_takes_exactly(build_config, specs, name: str, names) -> list:
         assert str(caught.value) == (f"parameter '{name}': unknown value {value!r}; "
                                      f"choose one of: {', '.join(names)}")
     return built
+
+
+# ---------------------------------------------------------------------------- the node skeleton
+def assert_follows_the_skeleton(node_process, node: str, package: str, specs) -> None:
+    """The node skeleton (pam_common.node_skeleton) as a user meets it, with real processes:
+    `node --help` prints a usage listing every parameter of `specs` and exits 0; an argument
+    that is not a ROS argument is one line and exit code 2; a misspelt parameter (the longest
+    name without its last letter) is a warning naming the closest known one."""
+    from pam_common.node_params import unknown_parameter_warning
+    shown = node_process(node, package, '--help', raw=True)
+    assert shown.wait_exit(STARTUP_TIMEOUT) == 0, shown.stderr
+    usage = shown.stdout
+    assert usage.startswith(f'usage: {node} '), usage
+    listed = {line.split()[0] for line in usage.splitlines()
+              if line.startswith('  ') and not line.startswith('   ')}
+    assert {spec.name for spec in specs} <= listed, usage
+    assert shown.stderr == '', shown.stderr
+
+    stray = node_process(node, package, '--bogus', raw=True)
+    assert stray.wait_exit(STARTUP_TIMEOUT) == 2, stray.stderr
+    assert stray.stderr.splitlines() == [
+        f"{node}: error: unknown argument '--bogus'; parameters are set with --ros-args -p "
+        f'NAME:=VALUE (see {node} --help)'], stray.stderr
+
+    name = max((spec.name for spec in specs), key=len)
+    typo = name[:-1]
+    warning = unknown_parameter_warning(typo, specs, node)
+    assert f"did you mean '{name}'?" in warning
+    misspelt = node_process(node, package, '-p', f'{typo}:=1')
+    misspelt.wait_for(lambda: warning in misspelt.stderr, STARTUP_TIMEOUT, 'the warning')
+    assert 'Traceback' not in misspelt.stderr, misspelt.stderr

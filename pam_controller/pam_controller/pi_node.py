@@ -29,27 +29,25 @@ import time
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import SetBool
 from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement, Reference,
                                 ValveCommand)
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
-from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import (ConfigError, ParamSpec, check_all, check_command,
-                                    declare_parameters, merge_overrides, usage_text, wants_help)
+from pam_common.node_params import ConfigError, ParamSpec, check_all, check_command, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
+from pam_common.topics import (CONTROLLER_STATE, DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED,
+                               REFERENCE, VALVE_COMMAND)
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
 from .pi import ANTI_WINDUP, PiGains, validate_gains
 
 NODE_NAME = 'pi_node'
-DEFAULT_NAMESPACE = '/pam'
-QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                 depth=100)
 GAIN_RANGE = (0.0, 1.0e4)
 RUNTIME = dict(read_only=False)
 
@@ -123,8 +121,7 @@ class PiNode(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
-                                                            declare_parameters(self, PARAMETERS)))
+        self.values = parameter_values(self, PARAMETERS)
         self.loop = build_loop(self.values)
         self.gaps = SampleGaps()              # of the estimates' sample counter
         self.logs = ThrottledLogs(self.get_logger(), 1.0)
@@ -132,16 +129,17 @@ class PiNode(Node):
         self.guard = FiniteGuard(self.get_logger())
         safe = dict(zip(('u1', 'u2'), self.loop.safe_command))
         self.command_pub = self.guard.wrap(
-            self.create_publisher(ValveCommand, 'valve_command', QOS), safe=safe, whole=True)
+            self.create_publisher(ValveCommand, VALVE_COMMAND, SAMPLE_QOS), safe=safe, whole=True)
         self.state_pub = self.guard.wrap(
-            self.create_publisher(ControllerState, 'controller_state', QOS), safe=safe)
+            self.create_publisher(ControllerState, CONTROLLER_STATE, SAMPLE_QOS), safe=safe)
         if self.values['feedback'] == 'estimate':
-            self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
+            self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
         else:
-            self.create_subscription(JointMeasurement, 'joint_measured', self._on_measured, QOS)
+            self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_measured,
+                                     SAMPLE_QOS)
             self.get_logger().warn('feedback from joint_measured: a comparison run, not '
                                    'sensor-less control')
-        self.create_subscription(Reference, 'reference', self._on_reference, QOS)
+        self.create_subscription(Reference, REFERENCE, self._on_reference, SAMPLE_QOS)
         self.create_service(SetBool, '~/enable', self._on_enable)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: PI controller',
@@ -273,13 +271,9 @@ class PiNode(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
-            f'{NODE_NAME} --ros-args -p mode:=torque -p kp_torque:=3.0',
-            'ros2 param set /pam/pi_node kp_angle 30.0']))
-        return 0
-    return run_node(PiNode, NODE_NAME, args)
+    return node_main(PiNode, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+        f'{NODE_NAME} --ros-args -p mode:=torque -p kp_torque:=3.0',
+        'ros2 param set /pam/pi_node kp_angle 30.0']), args)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -16,22 +16,19 @@ from __future__ import annotations
 import sys
 
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
-from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import (ConfigError, ParamSpec, check_all, declare_parameters,
-                                    merge_overrides, usage_text, wants_help)
+from pam_common.node_params import ConfigError, ParamSpec, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import SAMPLE_QOS
+from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, PRESSURES, VALVE_COMMAND
 from pam_controller.run_recorder import RunRecorder
 from pam_model.valve_voltage import U_MIN
 
 NODE_NAME = 'profile_player'
-DEFAULT_NAMESPACE = '/pam'
 DRAIN_TIME = 0.5   # s, wait after the last command for the last estimates
-QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                 depth=100)
 
 PARAMETERS = (
     ParamSpec('profile', 'validation', 'string', '',
@@ -99,8 +96,7 @@ class ProfilePlayer(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        values = check_all(PARAMETERS, merge_overrides(PARAMETERS,
-                                                       declare_parameters(self, PARAMETERS)))
+        values = parameter_values(self, PARAMETERS)
         self.values = values
         try:
             self.U = profile_inputs(values)
@@ -113,16 +109,16 @@ class ProfilePlayer(Node):
         self._drain_timer = None
         self.guard = FiniteGuard(self.get_logger())      # non-finite -> 0 V (vent), as sim_node
         self.command_pub = self.guard.wrap(
-            self.create_publisher(ValveCommand, 'valve_command', QOS),
+            self.create_publisher(ValveCommand, VALVE_COMMAND, SAMPLE_QOS),
             safe={'u1': U_MIN, 'u2': U_MIN}, whole=True)
-        self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
-        self.create_subscription(JointMeasurement, 'joint_measured', self._on_truth, QOS)
-        self.create_subscription(JointEstimate, 'estimate', self._on_estimate, QOS)
+        self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
+        self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, SAMPLE_QOS)
+        self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
         self._startup_timer = self.create_timer(values['startup_timeout'], self._on_timeout)
         self.get_logger().info(
             f"playing the {values['profile']} profile ({len(self.U) / values['rate']:g} s, seed "
-            f"{values['seed']}) on {self.resolve_topic_name('valve_command')}, one command per "
-            f"sample of {self.resolve_topic_name('pressures')}")
+            f"{values['seed']}) on {self.resolve_topic_name(VALVE_COMMAND)}, one command per "
+            f'sample of {self.resolve_topic_name(PRESSURES)}')
 
     def _on_timeout(self) -> None:
         self.destroy_timer(self._startup_timer)
@@ -162,7 +158,7 @@ class ProfilePlayer(Node):
     def _estimator_ready(self) -> bool:
         """True once an estimator publishes, or when not waiting (any more) for one."""
         wait = self.values['wait_for_estimator']
-        if wait <= 0.0 or self.count_publishers(self.resolve_topic_name('estimate')) > 0:
+        if wait <= 0.0 or self.count_publishers(self.resolve_topic_name(ESTIMATE)) > 0:
             return True
         waited = (self.get_clock().now() - self._created).nanoseconds * 1e-9
         if waited < wait:
@@ -193,13 +189,10 @@ class ProfilePlayer(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
-            f'{NODE_NAME} --ros-args -p duration:=30.0 -p save:=/tmp/run.npz',
-            f'{NODE_NAME} --ros-args -p profile:=calibration_locked   # joint locked, bag_record on']))
-        return 0
-    return run_node(ProfilePlayer, NODE_NAME, args)
+    return node_main(ProfilePlayer, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+        f'{NODE_NAME} --ros-args -p duration:=30.0 -p save:=/tmp/run.npz',
+        f'{NODE_NAME} --ros-args -p profile:=calibration_locked   # joint locked, bag_record on']),
+        args)
 
 
 if __name__ == '__main__':

@@ -18,21 +18,18 @@ import sys
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from pam_interfaces.msg import Reference
 
 from pam_common.diagnostics import OK, DiagnosticsPublisher
-from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import (ParamSpec, check_all, declare_parameters, fail,
-                                    merge_overrides, usage_text, wants_help)
+from pam_common.node_params import ParamSpec, check_all, fail, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import LATEST_QOS
+from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
 
 from .control_loop import ENVELOPE, MODE_NAMES
 
 NODE_NAME = 'reference_node'
-DEFAULT_NAMESPACE = '/pam'
-QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                 depth=10)
 PROFILES = ('steps', 'ramp', 'sine', 'constant')
 LIMITS = {MODE_NAMES[mode]: limit for mode, limit in ENVELOPE.items()}   # rad, N m
 
@@ -95,12 +92,11 @@ class ReferenceNode(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = check_values(merge_overrides(PARAMETERS,
-                                                   declare_parameters(self, PARAMETERS)))
+        self.values = parameter_values(self, PARAMETERS, check=check_values)
         self.mode = Reference.ANGLE if self.values['mode'] == 'angle' else Reference.TORQUE
         self.steps = step_levels(self.values) if self.values['profile'] == 'steps' else None
         self.guard = FiniteGuard(self.get_logger())
-        self.publisher = self.guard.wrap(self.create_publisher(Reference, 'reference', QOS),
+        self.publisher = self.guard.wrap(self.create_publisher(Reference, REFERENCE, LATEST_QOS),
                                          hold=True)
         self.start = None
         self.published = 0
@@ -112,7 +108,7 @@ class ReferenceNode(Node):
             f"{self.values['profile']} profile, {self.values['mode']} mode, amplitude "
             f"{self.values['amplitude']:g} {unit}, offset {self.values['offset']:g} {unit}, "
             f"{self.values['duration']:g} s{' repeated' if self.values['repeat'] else ''}, "
-            f"on {self.resolve_topic_name('reference')} at {self.values['rate']:g} Hz")
+            f"on {self.resolve_topic_name(REFERENCE)} at {self.values['rate']:g} Hz")
 
     def _tick(self) -> None:
         now = self.get_clock().now()
@@ -135,12 +131,8 @@ class ReferenceNode(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
-            f'{NODE_NAME} --ros-args -p mode:=torque -p amplitude:=2.0 -p profile:=steps']))
-        return 0
-    return run_node(ReferenceNode, NODE_NAME, args)
+    return node_main(ReferenceNode, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+        f'{NODE_NAME} --ros-args -p mode:=torque -p amplitude:=2.0 -p profile:=steps']), args)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -76,32 +76,28 @@ import time
 import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import cli_preamble, declare_parameters
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
+from pam_common.topics import (CLOCK, DEFAULT_NAMESPACE, JOINT_MEASURED, PRESSURES,
+                               VALVE_COMMAND)
 from pam_model.valve_voltage import SANITISE_RULE
 
 NODE_NAME = 'sim_node'
-DEFAULT_NAMESPACE = '/pam'
 HARDWARE_ID = 'simulated-pam-rig'
 DIAGNOSTICS_PERIOD = 1.0   # s
 RATE_TOLERANCE = 0.05      # realtime: WARN when the achieved rate is off by more than this
 LATE_TOLERANCE = 0.05      # realtime: WARN when more than this fraction of a window is late
 LOG_THROTTLE = 1.0         # s between two log lines about bad input
 
-SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        depth=100, durability=DurabilityPolicy.VOLATILE)
-CLOCK_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                       depth=10)
 
 
 class SimNode(Node):
@@ -134,14 +130,14 @@ class SimNode(Node):
     # ------------------------------------------------------------------ set-up
     def configure(self) -> None:
         """Declare and check every parameter, build the plant and the ROS interfaces."""
-        values = declare_parameters(self, PARAMETERS)
+        self.config = parameter_values(self, PARAMETERS, check=build_config)
+        values = self.config.values
         if self.get_parameter('use_sim_time').value:
             self.get_logger().warning('use_sim_time is true: ignored, the simulated rig runs on '
                                       'the system clock (it publishes /clock itself with '
                                       'publish_clock)')
             self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, False)])
 
-        self.config = build_config(values)
         self._rig = self.config.make_rig()
         warm_up = self.config.make_rig()  # load the compiled model now, not at the 2nd sample
         warm_up.step()
@@ -153,12 +149,12 @@ class SimNode(Node):
 
         self._guard = FiniteGuard(self.get_logger())    # non-finite -> the last finite value
         self._pub_pressures = self._guard.wrap(
-            self.create_publisher(Pressures, 'pressures', SAMPLE_QOS), hold=True)
+            self.create_publisher(Pressures, PRESSURES, SAMPLE_QOS), hold=True)
         self._pub_joint = self._guard.wrap(
-            self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS), hold=True)
-        self._pub_clock = (self.create_publisher(Clock, '/clock', CLOCK_QOS)
+            self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
+        self._pub_clock = (self.create_publisher(Clock, CLOCK, CLOCK_QOS)
                            if values['publish_clock'] else None)
-        self._sub_command = self.create_subscription(ValveCommand, 'valve_command',
+        self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
         self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: simulated rig',
                                                  HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
@@ -399,11 +395,8 @@ def started_sim_node() -> SimNode:
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else list(args)
-    code = cli_preamble(argv, NODE_NAME, usage_text())
-    if code is not None:
-        return code
-    return run_node(started_sim_node, NODE_NAME, args=argv, stop=lambda node: node.stop())
+    return node_main(started_sim_node, NODE_NAME, usage_text(), args,
+                     stop=lambda node: node.stop())
 
 
 if __name__ == '__main__':

@@ -23,12 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
+from pam_common import topics as stack_topics
 from pam_common.stamps import ns_pair, stamp_ns
 from pam_model.simulate import SimulationResult
 
-PRESSURES = '/pam/pressures'
-COMMAND = '/pam/valve_command'
-MEASURED = '/pam/joint_measured'
+PRESSURES = stack_topics.absolute(stack_topics.PRESSURES)
+COMMAND = stack_topics.absolute(stack_topics.VALVE_COMMAND)
+MEASURED = stack_topics.absolute(stack_topics.JOINT_MEASURED)
 INITIAL_COMMAND = (5.5, 5.5)
 LOCKED_TOLERANCE = math.radians(0.2)   # rad: a locked rig's encoder may jitter by a count or two
 
@@ -56,11 +57,13 @@ def _decode(contents, store, topic):
     return [(stamp_ns(msg.header.stamp), msg) for _, msg in contents.deserialized(topic, store)]
 
 
-def load_bag_run(path, locked: bool | None = None, namespace: str = '/pam') -> BagRun:
+def load_bag_run(path, locked: bool | None = None,
+                 namespace: str = stack_topics.DEFAULT_NAMESPACE) -> BagRun:
     """The run recorded in a bag (see the module doc); BagError / ValueError if it cannot be."""
     from pam_bag.bags import (BagError, bag_files, check_definitions, load_bag,
                                  make_typestore)
-    topics = [t.replace('/pam', namespace, 1) for t in (PRESSURES, COMMAND, MEASURED)]
+    topics = [stack_topics.absolute(t, namespace) for t in
+              (stack_topics.PRESSURES, stack_topics.VALVE_COMMAND, stack_topics.JOINT_MEASURED)]
     contents = load_bag(path, check_types=False)
     for topic in (topics[0], topics[2]):
         if topic not in contents.topics:
@@ -139,7 +142,8 @@ SIMULATED_START_NS = 1_700_000_000 * 1_000_000_000
 
 
 def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
-                  start_ns: int = SIMULATED_START_NS, namespace: str = '/pam') -> Path:
+                  start_ns: int = SIMULATED_START_NS,
+                  namespace: str = stack_topics.DEFAULT_NAMESPACE) -> Path:
     """Write a simulated run as the bag the live stack records (the inverse of load_bag_run).
 
     Per sample k, stamped start_ns + t[k]: /pam/pressures (the sensor readings p_measured,
@@ -151,8 +155,9 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
     from pam_bag.bags import BagWriter
     writer = BagWriter(Path(path))
     store = writer.typestore
-    names = {'pressures': f'{namespace}/pressures', 'command': f'{namespace}/valve_command',
-             'measured': f'{namespace}/joint_measured'}
+    names = {'pressures': stack_topics.absolute(stack_topics.PRESSURES, namespace),
+             'command': stack_topics.absolute(stack_topics.VALVE_COMMAND, namespace),
+             'measured': stack_topics.absolute(stack_topics.JOINT_MEASURED, namespace)}
     msg_types = {'pressures': 'pam_interfaces/msg/Pressures',
                  'command': 'pam_interfaces/msg/ValveCommand',
                  'measured': 'pam_interfaces/msg/JointMeasurement'}

@@ -27,25 +27,22 @@ import sys
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import declare_parameters, wants_help
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
+from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, PRESSURES, VALVE_COMMAND
 
 from .estimator_core import EstimatorCore
 from .ukf_config import PARAMETERS, build_config, usage_text
 
 NODE_NAME = 'ukf_node'
-DEFAULT_NAMESPACE = '/pam'
-QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                 depth=100)
 LOG_THROTTLE = 1.0   # s
 
 
@@ -55,7 +52,7 @@ class UkfNode(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        config = build_config(declare_parameters(self, PARAMETERS))
+        config = parameter_values(self, PARAMETERS, check=build_config)
         self.core = EstimatorCore(config.ukf, config.values['initial_command'])
         self.frame_id = config.values['frame_id']
         self.stale_timeout = config.values['stale_timeout']
@@ -69,9 +66,9 @@ class UkfNode(Node):
         self._warm_up()
         self.guard = FiniteGuard(self.get_logger())      # non-finite -> the last finite value
         self.estimate_pub = self.guard.wrap(
-            self.create_publisher(JointEstimate, 'estimate', QOS), hold=True)
-        self.create_subscription(ValveCommand, 'valve_command', self._on_command, QOS)
-        self.create_subscription(Pressures, 'pressures', self._on_pressures, QOS)
+            self.create_publisher(JointEstimate, ESTIMATE, SAMPLE_QOS), hold=True)
+        self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
+        self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: UKF estimator',
                                                 'pam-ukf', self._report)
@@ -79,9 +76,8 @@ class UkfNode(Node):
         self.diagnostics.add_check(lambda: self.gaps.report(lost_warn_ratio))
         self.diagnostics.add_check(self.logs.report)
         self.get_logger().info(
-            f"estimating: {self.resolve_topic_name('pressures')} + "
-            f"{self.resolve_topic_name('valve_command')} -> "
-            f"{self.resolve_topic_name('estimate')}")
+            f'estimating: {self.resolve_topic_name(PRESSURES)} + '
+            f'{self.resolve_topic_name(VALVE_COMMAND)} -> {self.resolve_topic_name(ESTIMATE)}')
 
     def _warm_up(self) -> None:
         """Run the compiled kernel once (loads numba's cache or compiles) on a throw-away copy."""
@@ -163,11 +159,7 @@ class UkfNode(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        sys.stdout.write(usage_text())
-        return 0
-    return run_node(UkfNode, NODE_NAME, args)
+    return node_main(UkfNode, NODE_NAME, usage_text(), args)
 
 if __name__ == '__main__':
     sys.exit(main())

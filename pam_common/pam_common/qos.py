@@ -1,0 +1,26 @@
+"""The stack's QoS profiles: the one place they are written (the topic names: pam_common.topics).
+
+    SAMPLE_QOS  pressures, joint_measured, valve_command, estimate, controller_state (both
+                ends), and every subscription of the 1 kHz loop (pi_node's reference too)
+    LATEST_QOS  reference (reference_node's publisher), the driver's ~/applied_command,
+                /diagnostics, /clock (CLOCK_QOS)
+
+bag_record and bag_play do not use these: they take each topic's QoS from its publishers or
+from the bag.
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+#: The 1 kHz sample streams and what answers them: reliable, keep last 100, volatile. A 1 kHz
+#: loop across processes loses nothing with depth 100; a subscriber that joins late gets no
+#: history.
+SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        depth=100, durability=DurabilityPolicy.VOLATILE)
+#: Slower topics where the latest values matter: reliable, keep last 10, volatile (rclpy's
+#: default profile, what a bare depth of 10 gives).
+LATEST_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        depth=10, durability=DurabilityPolicy.VOLATILE)
+#: /clock: LATEST_QOS, compatible with rclpy's best-effort /clock subscription.
+CLOCK_QOS = LATEST_QOS
