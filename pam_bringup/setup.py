@@ -18,7 +18,8 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='Bring-up of the PAM stack: pam-bringup, launch files, bring-up parameter files, tracking_report, the demo.',
+    description='Bring-up of the PAM stack: pam-bringup, the stack description, launch files, '
+                'bring-up parameter files, tracking_report, the demo (pam-demo).',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
