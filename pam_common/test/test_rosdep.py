@@ -3,7 +3,8 @@
 pointed at the copy of the rosdistro files in ../shared/rosdistro (the Jazzy distribution file,
 the base and python rosdep keys; skipped when the copy is not there) plus the repository's own
 rosdep/pam.yaml, with file:// URLs only (a proxy that goes nowhere stops any other access).
-The installed code needs no key of rosdep/pam.yaml: its exec dependencies resolve without it."""
+Building and running the stack needs no key of rosdep/pam.yaml: its build and exec dependencies
+resolve without it (only the tests' do not)."""
 
 import os
 import subprocess
@@ -120,11 +121,18 @@ def test_every_key_resolves_to_apt_or_pip(with_own_keys):
     assert all(v[0] == 'pip' for k, v in found.items() if k.endswith('-pip'))
 
 
-def test_the_installed_code_needs_no_key_of_our_own(public_only):
-    """Exec dependencies resolve with the public rosdistro alone: running the stack needs no
-    rosdep/pam.yaml (only the bag tests do)."""
-    exec_keys = keys(public_only, '--dependency-types', 'exec')
-    assert sorted(resolve(public_only, exec_keys)) == exec_keys
+BUILD_AND_RUN = [f'--dependency-types={kind}' for kind in
+                 ('buildtool', 'build', 'buildtool_export', 'build_export', 'exec')]
+
+
+def test_building_and_running_needs_no_key_of_our_own(public_only):
+    """Build and exec dependencies resolve with the public rosdistro alone: building and running
+    the stack needs no rosdep/pam.yaml (only the bag tests do)."""
+    wanted = keys(public_only, *BUILD_AND_RUN)
+    assert 'ament_cmake' in wanted and 'rclpy' in wanted
+    assert sorted(resolve(public_only, wanted)) == wanted
+    rosdep(public_only, 'install', '--from-paths', *map(str, PACKAGES), '--ignore-src',
+           '--simulate', '--reinstall', '-y', *BUILD_AND_RUN, *TARGET)
 
 
 def test_without_our_keys_rosdep_names_what_is_missing(public_only):
