@@ -341,7 +341,7 @@ def all_finite(values) -> bool:
     return all(math.isfinite(v) for v in values)
 
 
-def installed_config(name: str, package: str = 'pam_driver') -> str:
+def installed_config(name: str, package: str) -> str:
     """Path of a config file in the installed share folder of a package."""
     try:
         from ament_index_python.packages import get_package_share_directory

@@ -1,10 +1,9 @@
 """Params files and -p rules (pam_common.params_files): checked before rclpy.init, one error line.
 
 The check against rcl itself (rclpy.utilities.remove_ros_args runs rcl's parser): every file the
-check accepts rcl accepts, every file rcl refuses the check refuses, with a line number. Then real
-processes: sim_node, driver_node and the other pam_driver nodes (via run_node) refuse a malformed
-params file with exit code 2 and one line on stderr; an unknown parameter name warns, naming the
-closest known one. ukf_node, pi_node and pam-bringup: their packages' test_*params* modules.
+check accepts rcl accepts, every file rcl refuses the check refuses, with a line number. The nodes
+themselves (real processes): pam_bringup/test/test_params_files_nodes.py and
+test_params_files_cli.py, pam_estimator/test/test_ukf_node_params_files.py.
 """
 
 from __future__ import annotations
@@ -16,8 +15,7 @@ import pytest
 from pam_common.node_params import ParamSpec, unknown_parameter_warning
 from pam_common.params_files import (ParamsFileError, check_params_file, params_files_in,
                                      rcl_problem, ros_args_problem)
-from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
-                                assert_node_refuses_params_file, malformed_params_file)
+from pam_common.testing import MALFORMED_PARAMS_FILES, malformed_params_file
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -157,31 +155,3 @@ def test_unknown_parameter_warning_names_the_closest_name():
         "ignoring unknown parameter 'kp_angel': did you mean 'kp_angle'? (see pi_node --help)")
     assert unknown_parameter_warning('zzz', specs, 'pi_node') == (
         "ignoring unknown parameter 'zzz' (see pi_node --help)")
-
-
-# ---------------------------------------------------------------------------- real processes
-@pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
-@pytest.mark.parametrize('node', ['sim_node', 'driver_node'])
-def test_node_refuses_a_malformed_params_file_in_one_line(node_process, tmp_path, node, kind):
-    assert_node_refuses_params_file(node_process, tmp_path, node, 'pam_driver', kind)
-
-
-@pytest.mark.parametrize('node', ['profile_player', 'bag_record', 'bag_play'])
-def test_every_node_refuses_through_run_node(node_process, tmp_path, node):
-    assert_node_refuses_params_file(node_process, tmp_path, node, 'pam_driver', 'tab_indentation')
-
-
-def test_bad_override_rule_is_one_line(node_process):
-    process = node_process('sim_node', 'pam_driver', '-p', 'initial_command:=[5.5, 5]')
-    assert process.wait_exit(STARTUP_TIMEOUT) == 2
-    assert process.stderr.splitlines() == [
-        "[sim_node] error: cannot parse '-p initial_command:=[5.5, 5]': Sequence should be of "
-        "same type. Value type 'integer' do not belong"], process.stderr
-
-
-def test_unknown_name_in_a_params_file_warns_with_the_closest_name(node_process, tmp_path):
-    path = written(tmp_path, 'typo', '/**:\n  ros__parameters:\n    timing: lockstep\n'
-                   '    rat: 500.0\n')
-    sim = node_process('sim_node', 'pam_driver', '--params-file', str(path))
-    expected = "ignoring unknown parameter 'rat': did you mean 'rate'? (see sim_node --help)"
-    sim.wait_for(lambda: expected in sim.stderr, STARTUP_TIMEOUT, 'the unknown-name warning')

@@ -33,7 +33,7 @@ def _mean(values):
 
 
 def test_realtime_rate_near_1khz(sim_node, probe, helpers):
-    sim = sim_node('--params-file', helpers.installed_config('sim_node.yaml'))
+    sim = sim_node('--params-file', helpers.installed_config('sim_node.yaml', 'pam_driver'))
     got = probe.subscribe(Pressures, '/pam/pressures')
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
     sim.wait_for(lambda: len(got) > 0, STARTUP, 'the first /pam/pressures sample')
@@ -81,7 +81,7 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
 
 
 def test_raising_u1_raises_p1_and_moves_the_joint(sim_node, probe, helpers):
-    sim = sim_node('--params-file', helpers.installed_config('sim_node_mild.yaml'))
+    sim = sim_node('--params-file', helpers.installed_config('sim_node_mild.yaml', 'pam_driver'))
     pressures = probe.subscribe(Pressures, '/pam/pressures')
     joint = probe.subscribe(JointMeasurement, '/pam/joint_measured')
     command = probe.publisher(ValveCommand, '/pam/valve_command')

@@ -27,9 +27,12 @@ def test_bringup_refuses_a_malformed_params_file_before_starting(node_process, t
     assert run.stdout == '', run.stdout        # nothing started
 
 
+PACKAGE = {'reference_node': 'pam_controller', 'tracking_report': 'pam_bringup'}
+
+
 @pytest.mark.parametrize('node', ['reference_node', 'tracking_report'])
 def test_other_controller_nodes_refuse_through_run_node(node_process, tmp_path, node):
-    assert_node_refuses_params_file(node_process, tmp_path, node, 'pam_controller',
+    assert_node_refuses_params_file(node_process, tmp_path, node, PACKAGE[node],
                                     'list_under_ros__parameters')
 
 
