@@ -38,6 +38,7 @@ PYTHON_KEYS = {
     'rosbags': 'python3-rosbags-pip',
     'rosdep2': 'python3-rosdep',
     'ruamel': 'python3-ruamel.yaml',
+    'ruff': 'python3-ruff-pip',
     'scipy': 'python3-scipy',
     'serial': 'python3-serial',
     'yaml': 'python3-yaml',
