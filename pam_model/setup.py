@@ -15,7 +15,8 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='Antagonistic PAM joint model (Shin et al. 2021): physics, valve map, metrics, profiles.',
+    description=('Antagonistic PAM joint model (Shin et al. 2021): physics, valve map, metrics, '
+                 'profiles.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

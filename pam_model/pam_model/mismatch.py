@@ -5,12 +5,19 @@ offsets, plus the plant's pressure sensor model, read from YAML (see data/mismat
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
-from .parameters import (ParameterError, Parameters, read_yaml, check_number, data_path,
-                         field_name, validate_parameters)
+from .parameters import (
+    ParameterError,
+    Parameters,
+    check_number,
+    data_path,
+    field_name,
+    read_yaml,
+    validate_parameters,
+)
 from .sensor import PressureSensor
 
 BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml', 'strong': 'mismatch_strong.yaml'}
@@ -18,7 +25,8 @@ BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml', 'strong': 'mismatch_strong.ya
 
 @dataclass(frozen=True)
 class MismatchScenario:
-    """factors and offsets by YAML key ('mu_s', 'A1' for both valves, 'pam1.p_w2' for one muscle)."""
+    """factors and offsets by YAML key ('mu_s', 'A1' for both valves, 'pam1.p_w2' for one
+    muscle)."""
 
     name: str
     factors: Mapping[str, float]
@@ -42,7 +50,8 @@ def scenario_from_dict(data: Mapping, source: str) -> MismatchScenario:
     known = {'name', 'factors', 'offsets', 'sensor'}
     unknown = sorted(set(data) - known)
     if unknown:
-        raise ParameterError(f'{source}: unknown key {unknown[0]!r} (known: {", ".join(sorted(known))})')
+        raise ParameterError(f'{source}: unknown key {unknown[0]!r} '
+                             f'(known: {", ".join(sorted(known))})')
     tables = {}
     for section in ('factors', 'offsets'):
         table = data.get(section) or {}
@@ -53,8 +62,8 @@ def scenario_from_dict(data: Mapping, source: str) -> MismatchScenario:
                 field_name(str(key))
             except KeyError:
                 raise ParameterError(f'{source}: unknown parameter key {section}.{key!r}') from None
-            value = check_number(f'{section}.{key}', value, source)
-            if not math.isfinite(value):
+            number = check_number(f'{section}.{key}', value, source)
+            if not math.isfinite(number):
                 raise ParameterError(f'{source}: key {section}.{key!r}: must be finite')
         tables[section] = {str(k): float(v) for k, v in table.items()}
     try:

@@ -13,9 +13,10 @@ Two sets ship with the package (MODEL.md section 3):
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
-from typing import Mapping, NamedTuple
+from typing import NamedTuple
 
 import yaml
 
@@ -36,7 +37,8 @@ BUILTIN_SETS = {'default': 'params_default.yaml', 'printed': 'params_printed.yam
 
 
 class ParameterError(ValueError):
-    """A parameter file is malformed or holds an impossible value; the message names key and file."""
+    """A parameter file is malformed or holds an impossible value; the message names key and
+    file."""
 
 
 class Parameters(NamedTuple):
@@ -86,7 +88,7 @@ class Parameters(NamedTuple):
             d[section] = {key: getattr(self, f'{key}_{i}') for key in MUSCLE_KEYS}
         return d
 
-    def replace(self, **changes: float) -> 'Parameters':
+    def replace(self, **changes: float) -> Parameters:
         """A copy with some fields changed (field names as in the NamedTuple)."""
         return self._replace(**changes)
 
@@ -145,7 +147,8 @@ def _check_keys(mapping: Mapping, expected, where: str, source: str, optional=()
 
 
 def parameters_from_dict(data: Mapping, source: str = '<dict>') -> Parameters:
-    """Validate the YAML layout and build Parameters. Raises ParameterError naming key and source."""
+    """Validate the YAML layout and build Parameters. Raises ParameterError naming key and
+    source."""
     _check_keys(data, JOINT_KEYS + MUSCLE_SECTIONS, '', source, optional=('name',))
     fields = {key: check_number(key, data[key], source) for key in JOINT_KEYS}
     for i, section in enumerate(MUSCLE_SECTIONS, start=1):

@@ -196,7 +196,7 @@ def joint_torque(psi, F1, F2, p):
     return p.r * math.cos(psi) * (F1 - F2)
 
 
-# --- friction, eq. (10) and Table III ---------------------------------------------------------------
+# --- friction, eq. (10) and Table III -----------------------------------------------------------
 
 @njit(cache=True)
 def coulomb_level(psi_dot, P1, P2, F1, F2, p, friction_law):
@@ -243,7 +243,7 @@ def friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model):
     return omega_star / z, False
 
 
-# --- state equation (11a), RK4 -------------------------------------------------------------------------
+# --- state equation (11a), RK4 ------------------------------------------------------------------
 
 @njit(cache=True)
 def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, g, force_model, locked):

@@ -40,7 +40,7 @@ class ReferenceProfile(NamedTuple):
 
 
 def _segment_times(duration: float, Ts: float) -> np.ndarray:
-    n = int(round(duration / Ts))
+    n = round(duration / Ts)
     return np.arange(n) * Ts
 
 
@@ -95,7 +95,7 @@ def step_reference_profile(mode: str = 'angle', seed: int = 0, duration: float =
     limit = ANGLE_STEP_MAX if mode == 'angle' else TORQUE_STEP_MAX
     rng = np.random.default_rng(seed)
     t = _segment_times(duration, Ts)
-    n_steps = int(math.ceil(duration / hold))
+    n_steps = math.ceil(duration / hold)
     levels = [0.0]
     while len(levels) < n_steps:
         level = rng.uniform(-limit, limit)

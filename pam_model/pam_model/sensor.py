@@ -56,12 +56,13 @@ class PressureSensor:
         return adc_reading(noisy, self.resolution, self.range_min, self.range_max)
 
     @classmethod
-    def from_dict(cls, data: dict) -> 'PressureSensor':
+    def from_dict(cls, data: dict) -> PressureSensor:
         """From the `sensor` section of a mismatch scenario YAML."""
         known = {'pressure_noise_std', 'quantisation_bits', 'range_min', 'range_max'}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise ValueError(f'unknown sensor key {unknown[0]!r} (known: {", ".join(sorted(known))})')
+            raise ValueError(f'unknown sensor key {unknown[0]!r} '
+                             f'(known: {", ".join(sorted(known))})')
         return cls(noise_std=float(data.get('pressure_noise_std', 0.0)),
                    bits=int(data.get('quantisation_bits', 0)),
                    range_min=float(data.get('range_min', 0.0)),

@@ -71,10 +71,10 @@ class SimulationResult:
         """Write .npz (named arrays) or .csv (one header row with units) by the file suffix."""
         path = Path(path)
         if path.suffix == '.npz':
-            np.savez_compressed(path, **dict(zip(self.COLUMNS, self.table().T)),
+            np.savez_compressed(path, **dict(zip(self.COLUMNS, self.table().T, strict=True)),
                                 locked=np.array(self.locked))
         elif path.suffix == '.csv':
-            header = ','.join(f'{c} [{u}]' for c, u in zip(self.COLUMNS, self.UNITS))
+            header = ','.join(f'{c} [{u}]' for c, u in zip(self.COLUMNS, self.UNITS, strict=True))
             np.savetxt(path, self.table(), delimiter=',', header=header, comments='',
                        fmt='%.10g')
         else:
@@ -82,7 +82,7 @@ class SimulationResult:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> 'SimulationResult':
+    def load(cls, path: str | Path) -> SimulationResult:
         """Read back a file written by save()."""
         path = Path(path)
         if path.suffix == '.npz':
@@ -91,7 +91,7 @@ class SimulationResult:
                 locked = bool(f['locked'])
         else:
             table = np.loadtxt(path, delimiter=',', skiprows=1, ndmin=2)
-            cols = dict(zip(cls.COLUMNS, table.T))
+            cols = dict(zip(cls.COLUMNS, table.T, strict=True))
             locked = False
         return cls(t=cols['t'], u=np.column_stack([cols['u1'], cols['u2']]),
                    x=np.column_stack([cols['psi'], cols['psi_dot'], cols['P1'], cols['P2']]),

@@ -64,7 +64,8 @@ class ValveMap:
 
     def to_csv(self) -> str:
         """The table as CSV text with header voltage_V,alpha."""
-        lines = ['voltage_V,alpha'] + [f'{u:.6g},{a:.6f}' for u, a in zip(self.u, self.alpha)]
+        lines = ['voltage_V,alpha', *(f'{u:.6g},{a:.6f}'
+                                      for u, a in zip(self.u, self.alpha, strict=True))]
         return '\n'.join(lines) + '\n'
 
     def save(self, path: str | Path) -> None:
@@ -106,7 +107,8 @@ def net_flow_per_area(P: float, alpha: float, p: Parameters) -> float:
 
 
 def steady_pressure(alpha: float, p: Parameters) -> float:
-    """Step (a): the steady pressure P_bar (Pa abs) of a closed muscle at opening alpha in [0, 1]."""
+    """Step (a): the steady pressure P_bar (Pa abs) of a closed muscle at opening alpha in
+    [0, 1]."""
     if alpha <= 0.0:
         return p.P_out
     if alpha >= 1.0:

@@ -14,8 +14,11 @@ import math
 import numpy as np
 import pytest
 
-from pam_model.calibration_profiles import (HOLD_VOLTAGES, free_calibration_profile,
-                                            locked_calibration_profile)
+from pam_model.calibration_profiles import (
+    HOLD_VOLTAGES,
+    free_calibration_profile,
+    locked_calibration_profile,
+)
 from pam_model.identification.campaign import CampaignPlan, records_of, simulate_campaign
 from pam_model.identification.fit_result import correlation_time, standard_errors
 from pam_model.identification.flow_fit import pressure_trajectory
@@ -73,7 +76,8 @@ def test_locked_profile_holds_every_voltage_on_both_valves_then_jumps():
     assert not np.array_equal(pairs[:, 0], pairs[:, 1])        # independent orders
 
 
-@pytest.mark.parametrize('kwargs', [{'hold': 1.0}, {'pair_hold': 0.5}, {'hold': 0.0, 'pair_hold': 0.0},
+@pytest.mark.parametrize('kwargs', [{'hold': 1.0}, {'pair_hold': 0.5},
+                                    {'hold': 0.0, 'pair_hold': 0.0},
                                     {'voltages': (0.0, 11.0, 5.0)}])
 def test_locked_profile_rejects_bad_settings(kwargs):
     with pytest.raises(ValueError):
@@ -185,7 +189,7 @@ def test_a_record_with_nan_pressure_is_refused_with_its_name(campaign):
 def test_kappa_is_recovered_at_the_hold_voltages(identified):
     true_map = load_valve_map()
     assert list(identified.valve_map.u) == list(SHORT_PLAN.voltages)
-    for u, alpha in zip(identified.valve_map.u, identified.valve_map.alpha):
+    for u, alpha in zip(identified.valve_map.u, identified.valve_map.alpha, strict=True):
         assert abs(alpha - true_map(u)) < 0.005, u
 
 
@@ -219,7 +223,7 @@ def test_report_lists_every_fit_with_uncertainty_and_truth(identified, plant):
     report = format_report(identified, prior, truth, load_valve_map())
     for group in ('[valve_map]', '[forces]', '[flow]', '[friction]'):
         assert group in report
-    line = next(l for l in report.splitlines() if l.startswith('mu_s '))
+    line = next(row for row in report.splitlines() if row.startswith('mu_s '))
     assert len(line.split()) >= 7            # name unit prior value std true error
     assert 'NOT identified' not in report
 
@@ -249,8 +253,8 @@ def test_without_a_free_run_k2_and_friction_are_reported_missing_or_kept(plant, 
 
 def test_without_static_holds_kappa_is_missing(plant):
     prior, truth, sensor = plant
-    plan = CampaignPlan(lock_angles=(-15.0, 15.0), voltages=(0.0, 2.0, 4.0, 5.5, 7.0, 10.0), hold=0.0,
-                        pair_hold=3.0, free_duration=0.0)
+    plan = CampaignPlan(lock_angles=(-15.0, 15.0), voltages=(0.0, 2.0, 4.0, 5.5, 7.0, 10.0),
+                        hold=0.0, pair_hold=3.0, free_duration=0.0)
     records = records_of(simulate_campaign(PamModel(params=truth), sensor, plan))
     with pytest.raises(IdentificationError, match=r'kappa\(u\) needs settled static holds'):
         identify(records, prior, load_valve_map())

@@ -6,8 +6,13 @@ import pytest
 import yaml
 
 from pam_model.mismatch import load_scenario
-from pam_model.parameters import (ParameterError, Parameters, load_parameters,
-                                  resolve_parameter_file, save_parameters)
+from pam_model.parameters import (
+    ParameterError,
+    Parameters,
+    load_parameters,
+    resolve_parameter_file,
+    save_parameters,
+)
 
 
 def write_variant(tmp_path, edit):

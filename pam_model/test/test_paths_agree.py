@@ -1,4 +1,5 @@
-"""Scalar and vectorised paths, guards against NaN/inf, RK4 order, friction laws and force models."""
+"""Scalar and vectorised paths, guards against NaN/inf, RK4 order, friction laws and force
+models."""
 
 import math
 
@@ -83,7 +84,7 @@ def rk4_error(h, T=0.05):
     def run(step):
         model = PamModel(friction='none', h=step)
         x = x0.copy()
-        for _ in range(int(round(T / step))):
+        for _ in range(round(T / step)):
             x, _, _ = model.step(x, u)
         return x
     scale = np.array([1.0, 10.0, 1e5, 1e5])

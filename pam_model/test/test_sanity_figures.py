@@ -10,9 +10,15 @@ from pam_model.model import PamModel
 from pam_model.model_choices import ForceModel
 from pam_model.parameters import load_parameters
 from pam_model.simulate import simulate
-from pam_model.valve_map import (DEFAULT_STATIC_CURVE, calibrate_valve_map, data_path,
-                                 load_valve_map, opening_for_steady_pressure, read_two_column_csv,
-                                 steady_pressure)
+from pam_model.valve_map import (
+    DEFAULT_STATIC_CURVE,
+    calibrate_valve_map,
+    data_path,
+    load_valve_map,
+    opening_for_steady_pressure,
+    read_two_column_csv,
+    steady_pressure,
+)
 
 P = load_parameters('default')
 PROPOSED_FORCE = int(ForceModel.PROPOSED)   # the scalar kernels take the integer value

@@ -35,8 +35,8 @@ def test_sensor_quantises_to_12_bits_and_adds_noise():
     reading = sensor.measure(P, rng)
     counts = reading / sensor.resolution
     np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
-    assert np.std(reading - P) == pytest.approx(math.sqrt(2000.0 ** 2 + sensor.resolution ** 2 / 12),
-                                                rel=0.05)
+    expected = math.sqrt(2000.0 ** 2 + sensor.resolution ** 2 / 12)
+    assert np.std(reading - P) == pytest.approx(expected, rel=0.05)
     assert np.all(sensor.measure(np.array([-5e5, 5e6]), rng) == [0.0, 1e6])
 
 

@@ -1,4 +1,5 @@
-"""pam-kappa: the valve map kappa(u) from a measured static voltage/pressure curve (MODEL.md sec. 4)."""
+"""pam-kappa: the valve map kappa(u) from a measured static voltage/pressure curve
+(MODEL.md sec. 4)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,13 @@ import argparse
 import sys
 
 from ..parameters import load_parameters
-from ..valve_map import (DEFAULT_STATIC_CURVE, calibrate_valve_map, data_path,
-                         read_two_column_csv, steady_pressure)
+from ..valve_map import (
+    DEFAULT_STATIC_CURVE,
+    calibrate_valve_map,
+    data_path,
+    read_two_column_csv,
+    steady_pressure,
+)
 from .common import run_cli
 
 

@@ -24,7 +24,7 @@ import importlib
 import os
 import signal
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 STARTUP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -34,7 +34,7 @@ def exit_code_for(signum: int) -> int:
     return 128 + signum
 
 
-def _exit_quietly(signum, frame) -> None:  # noqa: ARG001
+def _exit_quietly(signum, frame) -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

@@ -12,8 +12,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..calibration_profiles import (FREE_LEVELS, HOLD_VOLTAGES, free_calibration_profile,
-                                    locked_calibration_profile)
+from ..calibration_profiles import (
+    FREE_LEVELS,
+    HOLD_VOLTAGES,
+    free_calibration_profile,
+    locked_calibration_profile,
+)
 from ..model import PamModel
 from ..simulate import simulate
 

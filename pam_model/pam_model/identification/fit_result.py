@@ -12,7 +12,8 @@ MAX_RELATIVE_STD = 0.25
 
 
 class NotIdentifiable(Exception):
-    """The runs lack what a fit needs: `what` says what is missing, `parameters` what it would fit."""
+    """The runs lack what a fit needs: `what` says what is missing, `parameters` what it would
+    fit."""
 
     def __init__(self, what: str, parameters):
         super().__init__(what)

@@ -17,8 +17,16 @@ import numpy as np
 from numba import njit
 from scipy.optimize import least_squares
 
-from ..physics import (P_MAX, P_MIN, clip, gas_constants, mass_flow, muscle_volume,
-                       pressure_rate, volume_rate)
+from ..physics import (
+    P_MAX,
+    P_MIN,
+    clip,
+    gas_constants,
+    mass_flow,
+    muscle_volume,
+    pressure_rate,
+    volume_rate,
+)
 from .fit_result import Estimate, GroupFit, NotIdentifiable, check_identified, standard_errors
 
 MIN_TRAVEL = math.radians(5.0)    # rad, a free run needs this much motion to inform k2
@@ -71,7 +79,7 @@ class PressureModel:
     def simulate(self, areas, k2) -> np.ndarray:
         p = self.prior.replace(k2=float(k2)).as_record_array()[0]
         parts = []
-        for rec, inputs in zip(self.records, self.inputs):
+        for rec, inputs in zip(self.records, self.inputs, strict=True):
             dt = rec.dt
             for i, (alpha, l, l_dot) in enumerate(inputs):
                 out = np.empty(len(rec.t))
@@ -85,7 +93,7 @@ def fit_flow(records, prior, valve_map) -> tuple[GroupFit, dict, list]:
     """The fit, the Parameters changes and what could not be fitted (NotIdentifiable list)."""
     if not records:
         raise NotIdentifiable('the valve areas need calibration runs with pressure transients',
-                              AREA_NAMES + ('k2',))
+                              (*AREA_NAMES, 'k2'))
     moving = [r for r in records if not r.locked and r.travel >= MIN_TRAVEL]
     skipped = []
     if not moving:
@@ -110,11 +118,11 @@ def fit_flow(records, prior, valve_map) -> tuple[GroupFit, dict, list]:
     areas, k2 = unpack(sol.x)
     z_std = standard_errors(sol.jac, sol.fun, correlated=True)
     estimates = [Estimate(n, float(a), float(a * s), float(a0), 'm^2')
-                 for n, a, s, a0 in zip(AREA_NAMES, areas, z_std[:4], areas0)]
+                 for n, a, s, a0 in zip(AREA_NAMES, areas, z_std[:4], areas0, strict=True)]
     if fit_k2:
         estimates.append(Estimate('k2', float(k2), float(prior.k2 * z_std[4]), prior.k2, '-'))
     check_identified(estimates, 'valve flow')
-    changes = dict(zip(AREA_FIELDS, map(float, areas)))
+    changes = dict(zip(AREA_FIELDS, map(float, areas), strict=True))
     if fit_k2:
         changes['k2'] = float(k2)
     notes = (f'k1 held at {prior.k1:g}: A1, A2 are effective areas for it (only k1 A_0 is '

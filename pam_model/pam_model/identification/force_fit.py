@@ -82,7 +82,7 @@ def fit_forces(records, prior) -> tuple[GroupFit, dict]:
              'pam1.p_w1 + pam2.p_w1')
     units = ('m', 'm^2', 'm', 'm^2', 'N', 'N/m')
     fitted = tuple(Estimate(n, float(v), float(s), float(p0), u)
-                   for n, v, s, p0, u in zip(names, theta, std, theta0, units))
+                   for n, v, s, p0, u in zip(names, theta, std, theta0, units, strict=True))
     check_identified(fitted[:4], 'force')
     d_w0, d_a = theta[4] - w0_prior, theta[5] - a_prior
     changes = {'p_v1_1': theta[0], 'p_v2_1': theta[1], 'p_v1_2': theta[2], 'p_v2_2': theta[3],

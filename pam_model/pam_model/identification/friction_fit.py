@@ -7,9 +7,10 @@ measured angle. The filter matters: sensor noise left in the pressures dithers t
 out of sticking (noise-induced creep), which the fit would pay back with more friction. On the
 'strong' plant with 2 kPa noise (60 s free run, true forces) a 25 Hz cut-off overestimated mu_s
 by 1.6 % and mu_p by 22 %, 10 Hz by 0.1 % and 9 %, 5 Hz: -0.6 % and +1 % (without noise any
-cut-off gives < 0.3 % and < 5 %); the muscles' pressures change over >= 0.1 s, so 5 Hz keeps them. Slow antagonistic ramps make the joint lag its
-frictionless equilibrium by T_c / stiffness, and co-contraction levels with different pressures
-weigh T_sh (mu_s, grows with F1 + F2) and T_p (mu_p, grows as a pressure nears P_out) differently.
+cut-off gives < 0.3 % and < 5 %); the muscles' pressures change over >= 0.1 s, so 5 Hz keeps
+them. Slow antagonistic ramps make the joint lag its frictionless equilibrium by T_c /
+stiffness, and co-contraction levels with different pressures weigh T_sh (mu_s, grows with
+F1 + F2) and T_p (mu_p, grows as a pressure nears P_out) differently.
 A coarse grid of the coefficients gives the start of the least-squares refinement (the cost is
 not smooth where the joint sticks).
 """
@@ -39,7 +40,8 @@ FORCE = int(ForceModel.PROPOSED)        # the force model of the identified coef
 
 @njit(cache=True)
 def joint_acceleration(psi, P1, P2, T_f, p):
-    """psi_ddot (rad/s^2) of eq. (9) at angle psi (rad), pressures P1, P2 (Pa), friction T_f (N m)."""
+    """psi_ddot (rad/s^2) of eq. (9) at angle psi (rad), pressures P1, P2 (Pa), friction T_f
+    (N m)."""
     F1, F2 = muscle_forces(psi, P1, P2, p, FORCE)
     return (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
 
@@ -110,7 +112,7 @@ def fit_friction(records, params) -> tuple[GroupFit, dict, list]:
         values = prior[fitted] * np.exp(sol.x)
         std = values * standard_errors(sol.jac, sol.fun, correlated=True)
         estimates = tuple(Estimate(PARAMETERS[i], float(v), float(s), float(prior[i]), UNITS[i])
-                          for i, v, s in zip(fitted, values, std))
+                          for i, v, s in zip(fitted, values, std, strict=True))
         return sol, estimates
 
     sol, estimates = solve([0, 1])

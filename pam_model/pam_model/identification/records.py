@@ -37,8 +37,8 @@ class CalibrationRecord:
         shapes = {'u': (n, 2), 'psi': (n,), 'psi_dot': (n,), 'P': (n, 2), 'tau': (n,)}
         for name, shape in shapes.items():
             if np.shape(getattr(self, name)) != shape:
-                raise RecordError(f'{self.source}: {name} has shape {np.shape(getattr(self, name))}, '
-                                  f'expected {shape}')
+                raise RecordError(f'{self.source}: {name} has shape '
+                                  f'{np.shape(getattr(self, name))}, expected {shape}')
         for name in ('t', 'u', 'psi', 'psi_dot', 'P'):
             bad = np.count_nonzero(~np.isfinite(getattr(self, name)))
             if bad:
@@ -47,7 +47,7 @@ class CalibrationRecord:
             raise RecordError(f'{self.source}: sample times are not strictly increasing')
 
     @classmethod
-    def from_run(cls, run, source: str) -> 'CalibrationRecord':
+    def from_run(cls, run, source: str) -> CalibrationRecord:
         """From a SimulationResult (pam-simulate file or a bag read by pam_estimator.bag_runs):
         its measured pressures, commands, angle, velocity and torque."""
         return cls(source=source, t=np.asarray(run.t, dtype=float),
@@ -56,7 +56,7 @@ class CalibrationRecord:
                    P=np.asarray(run.p_measured, dtype=float),
                    tau=np.asarray(run.torque, dtype=float), locked=bool(run.locked))
 
-    def since(self, k: int) -> 'CalibrationRecord':
+    def since(self, k: int) -> CalibrationRecord:
         """The record from sample k on (RecordError if too few samples remain)."""
         if k == 0:
             return self

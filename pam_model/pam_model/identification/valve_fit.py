@@ -11,6 +11,8 @@ kappa = P_bar^-1(P_bar(u)) through the model's static map (valve_map.calibrate_v
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from ..valve_map import ValveMap, ValveMapError, calibrate_valve_map, opening_for_steady_pressure
@@ -29,7 +31,7 @@ def hold_segments(u: np.ndarray, t: np.ndarray, min_duration: float = MIN_HOLD):
     """[(start, stop)] index ranges (stop exclusive) where u (V) is constant >= min_duration s."""
     change = np.flatnonzero(np.abs(np.diff(u)) > 1e-9) + 1
     bounds = np.concatenate([[0], change, [len(u)]])
-    return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])
+    return [(int(a), int(b)) for a, b in itertools.pairwise(bounds)
             if t[b - 1] - t[a] >= min_duration]
 
 
@@ -89,7 +91,8 @@ def fit_valve_map(records, prior, prior_map: ValveMap) -> tuple[GroupFit, ValveM
         mean = float(np.sum(weights * values[:, 0]) / np.sum(weights))
         P_bar.append(mean)
         # the larger of the propagated std and the scatter between holds
-        scatter = float(np.std(values[:, 0], ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
+        scatter = (float(np.std(values[:, 0], ddof=1) / np.sqrt(len(values)))
+                   if len(values) > 1 else 0.0)
         P_std.append(max(float(np.sqrt(1.0 / np.sum(weights))), scatter))
         spread.extend(values[:, 0] - mean)
     try:
@@ -102,7 +105,7 @@ def fit_valve_map(records, prior, prior_map: ValveMap) -> tuple[GroupFit, ValveM
     estimates = tuple(
         Estimate(f'kappa({u:g} V)', float(a), float(s), float(prior_map(u)), '-',
                  'pinned' if j in (0, len(voltages) - 1) else '')
-        for j, (u, a, s) in enumerate(zip(voltages, valve_map.alpha, alpha_std)))
+        for j, (u, a, s) in enumerate(zip(voltages, valve_map.alpha, alpha_std, strict=True)))
     notes = (f'{len(rows)} settled holds at {len(voltages)} voltages, {rejected} not settled '
              'and left out; kappa(0 V) = 0 and kappa(10 V) = 1 by definition',)
     return (GroupFit('valve_map', estimates, float(np.sqrt(np.mean(np.square(spread)))), 'Pa',
