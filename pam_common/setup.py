@@ -14,7 +14,9 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='Shared node infrastructure of the PAM stack: node skeleton, parameter tables, executors and stop signals, diagnostics, timing, stamps, topic names and QoS.',
+    description=('Shared node infrastructure of the PAM stack: node skeleton, parameter '
+                 'tables, executors and stop signals, diagnostics, timing, stamps, topic names '
+                 'and QoS.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

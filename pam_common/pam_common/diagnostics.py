@@ -19,7 +19,7 @@ The module-level helpers (format_value, level_from, make_status) need no running
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 

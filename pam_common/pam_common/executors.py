@@ -70,7 +70,7 @@ class StopSignals:
         for sig in self.SIGNALS:
             signal.signal(sig, self._on_signal)
 
-    def _on_signal(self, signum, frame) -> None:  # noqa: ARG002
+    def _on_signal(self, signum, frame) -> None:
         if self.requested is not None:
             raise KeyboardInterrupt
         self.requested = signum
@@ -175,9 +175,9 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     A node with a `finished` Future runs until it completes (or Ctrl-C: ROS is then shut down
     first), and its `finish()` gives the exit code; further SIGINT/SIGTERM are ignored while it
     finishes. `stop(node)`, if given, runs with ROS still up (its threads may still publish),
-    then the node is destroyed and ROS shut down. Any other node must be gone SHUTDOWN_GRACE s after its
-    spin ends or the context goes down (ShutdownWatchdog). SIGUSR1 prints every thread's stack
-    (stack_dump).
+    then the node is destroyed and ROS shut down. Any other node must be gone SHUTDOWN_GRACE s
+    after its spin ends or the context goes down (ShutdownWatchdog). SIGUSR1 prints every
+    thread's stack (stack_dump).
     """
     from .node_params import ConfigError
     from .params_files import report_ros_args_problem

@@ -33,12 +33,17 @@ from __future__ import annotations
 import importlib
 import math
 import threading
-from functools import lru_cache
+from collections.abc import Mapping
+from functools import cache
 from operator import attrgetter
-from typing import Mapping, NamedTuple
+from typing import NamedTuple
 
-from rosidl_parser.definition import (FLOATING_POINT_TYPES, AbstractNestedType, BasicType,
-                                      NamespacedType)
+from rosidl_parser.definition import (
+    FLOATING_POINT_TYPES,
+    AbstractNestedType,
+    BasicType,
+    NamespacedType,
+)
 
 from .diagnostics import OK, WARN
 from .throttled_log import ThrottledLog
@@ -64,11 +69,12 @@ def _is_float(t) -> bool:
     return isinstance(t, BasicType) and t.typename in FLOATING_POINT_TYPES
 
 
-@lru_cache(maxsize=None)
+@cache
 def float_fields(msg_type) -> FloatFields | None:
     """The float fields of a ROS message class, once per class; None if it has none."""
     scalars, arrays, nested, nested_seqs = [], [], [], []
-    for name, slot in zip(msg_type.get_fields_and_field_types(), msg_type.SLOT_TYPES):
+    for name, slot in zip(msg_type.get_fields_and_field_types(), msg_type.SLOT_TYPES,
+                          strict=True):
         if _is_float(slot):
             scalars.append(name)
         elif isinstance(slot, AbstractNestedType) and _is_float(slot.value_type):
@@ -177,7 +183,7 @@ class GuardedPublisher:
     """A publisher whose publish() substitutes non-finite float values first (FiniteGuard.wrap);
     every other attribute is the wrapped publisher's."""
 
-    def __init__(self, guard: 'FiniteGuard', publisher, fields: FloatFields,
+    def __init__(self, guard: FiniteGuard, publisher, fields: FloatFields,
                  substitutes: _Substitutes):
         self._guard = guard
         self._publisher = publisher

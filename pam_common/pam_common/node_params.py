@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import math
 import textwrap
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
-from pam_model.valve_voltage import U_MAX, U_MIN   # V, the valve voltage range
+from pam_model.valve_voltage import U_MAX, U_MIN  # V, the valve voltage range
 
 
 class ConfigError(ValueError):
@@ -185,8 +186,12 @@ def usage_text(prog: str, summary: Sequence[str], specs: Sequence[ParamSpec],
 
 def descriptor(spec: ParamSpec):
     """The rcl_interfaces ParameterDescriptor of a spec."""
-    from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                    ParameterType)
+    from rcl_interfaces.msg import (
+        FloatingPointRange,
+        IntegerRange,
+        ParameterDescriptor,
+        ParameterType,
+    )
     types = {'string': ParameterType.PARAMETER_STRING,
              'double': ParameterType.PARAMETER_DOUBLE,
              'integer': ParameterType.PARAMETER_INTEGER,

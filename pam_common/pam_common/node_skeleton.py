@@ -25,7 +25,8 @@ pam_common/test/test_layout.py holds every node to this skeleton.
 from __future__ import annotations
 
 import sys
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from .executors import run_node
 from .node_params import ParamSpec, check_all, cli_preamble, declare_parameters, merge_overrides

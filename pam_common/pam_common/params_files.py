@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 PARAMETERS_KEY = 'ros__parameters'
 # rcl's messages: "... at line 3", "... near line 3", "... at line_num 3"
@@ -106,7 +106,7 @@ def _sections(path, mapping, names: list[str]) -> list[str]:
             _check_parameters(path, value, '')
             sections.append('/'.join(names))
         elif isinstance(value, yaml.MappingNode):
-            below = _sections(path, value, names + [key.value])
+            below = _sections(path, value, [*names, key.value])
             if not below:
                 raise ParamsFileError(path, f"'{key.value}' has no {PARAMETERS_KEY}",
                                       _line(key))

@@ -80,8 +80,8 @@ class NodeProcess:
     def __init__(self, name, package, args, env, cwd):
         self.name = name
         self.args = [executable(name, package), *args]
-        self._out = tempfile.TemporaryFile(mode='w+b')
-        self._err = tempfile.TemporaryFile(mode='w+b')
+        self._out = tempfile.TemporaryFile(mode='w+b')   # noqa: SIM115 - closed by close()
+        self._err = tempfile.TemporaryFile(mode='w+b')   # noqa: SIM115 - closed by close()
         self.proc = subprocess.Popen(self.args, env=env, cwd=cwd, stdout=self._out,
                                      stderr=self._err, stdin=subprocess.DEVNULL)
 
@@ -237,6 +237,7 @@ class Probe:
         import rclpy
         from rclpy.node import Node
         from rclpy.task import Future
+
         from pam_common.executors import is_events_executor, make_executor
 
         self._rclpy = rclpy

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable
+from collections.abc import Callable
 
 #: The /diagnostics key of suppressed_total().
 SUPPRESSED_KEY = 'log lines suppressed (throttled)'

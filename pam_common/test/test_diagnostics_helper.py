@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
-from pam_common.diagnostics import (ERROR, OK, WARN, DiagnosticsPublisher, format_value,
-                                    level_from, make_status, status_values)
+from pam_common.diagnostics import (
+    ERROR,
+    OK,
+    WARN,
+    DiagnosticsPublisher,
+    format_value,
+    level_from,
+    make_status,
+    status_values,
+)
 
 
 @pytest.mark.parametrize('value, text', [

@@ -96,11 +96,12 @@ def test_a_node_that_hangs_at_shutdown_exits_with_its_stacks(ros_domain, script)
     by the main thread when the stop begins: also when the stop blocks every Python thread at
     once (GIL held)."""
     import time
+
     from pam_common.executors import SHUTDOWN_GRACE
     process = start_spinning(script, ros_domain)
     start = time.monotonic()
     process.send_signal(signal.SIGINT)
-    out, err = process.communicate(timeout=30)
+    _out, err = process.communicate(timeout=30)
     took = time.monotonic() - start
     assert process.returncode == 1, err
     assert SHUTDOWN_GRACE - 0.5 < took < SHUTDOWN_GRACE + 5.0, took
@@ -131,6 +132,7 @@ def test_sigusr1_prints_the_stacks_and_the_node_runs_on(ros_domain):
     the main thread's in the spin; the node runs on and still stops cleanly on Ctrl-C."""
     import re
     import time
+
     from pam_common.stack_dump import STACK_DUMP_SIGNAL
     process = start_spinning(IDLE_AT_STOP, ros_domain)
     process.send_signal(STACK_DUMP_SIGNAL)
@@ -151,6 +153,7 @@ def test_a_second_ctrl_c_interrupts_a_node_that_does_not_stop(ros_domain):
     """StopSignals: the first Ctrl-C asks for a stop; a second one raises KeyboardInterrupt
     where the node is (here in a stop that would hang), well before the watchdog's grace."""
     import time
+
     from pam_common.executors import SHUTDOWN_GRACE
     process = start_spinning(HANGING, ros_domain)
     process.send_signal(signal.SIGINT)
@@ -158,7 +161,7 @@ def test_a_second_ctrl_c_interrupts_a_node_that_does_not_stop(ros_domain):
     assert process.poll() is None                  # in stop_hook
     start = time.monotonic()
     process.send_signal(signal.SIGTERM)
-    out, err = process.communicate(timeout=30)
+    _out, err = process.communicate(timeout=30)
     assert time.monotonic() - start < SHUTDOWN_GRACE - 1.0
     assert process.returncode == -signal.SIGINT, err   # an uncaught KeyboardInterrupt's exit
     assert 'KeyboardInterrupt' in err and 'stop_hook' in err and 'Timeout' not in err, err
@@ -186,6 +189,6 @@ def test_a_node_on_simulated_time_stops_on_ctrl_c_too(ros_domain):
     time.sleep(1.0)
     start = time.monotonic()
     process.send_signal(signal.SIGTERM)
-    out, err = process.communicate(timeout=30)
+    _out, err = process.communicate(timeout=30)
     assert process.returncode == 0, err
     assert time.monotonic() - start < 3.0

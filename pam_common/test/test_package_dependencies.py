@@ -127,7 +127,8 @@ def python_files(folder: Path) -> tuple[list[Path], list[Path]]:
     installed, tests = [], []
     for path in sorted(folder.rglob('*.py')):
         parts = path.relative_to(folder).parts
-        if parts[0] in ('build', 'install', 'log') or parts[-1] in NOT_SCANNED and len(parts) == 1:
+        if (parts[0] in ('build', 'install', 'log')
+                or (parts[-1] in NOT_SCANNED and len(parts) == 1)):
             continue
         if any(p.endswith('.egg-info') or p == '__pycache__' for p in parts):
             continue
@@ -242,8 +243,8 @@ def colcon_order_problems(packages) -> list[str]:
                              *p.test_depends]) for p in packages}
     run = {p.name: names(p.exec_depends) for p in packages}
     waits = {}
-    for name, queue in direct.items():
-        seen, queue = set(), list(queue)
+    for name, deps in direct.items():
+        seen, queue = set(), list(deps)
         while queue:
             dep = queue.pop()
             if dep not in seen and dep != name:

@@ -57,7 +57,7 @@ def test_ament_python_layout(folder):
     assert (folder / name / '__init__.py').is_file()
     setup = (folder / 'setup.py').read_text()
     assert re.search(rf"version='{re.escape(package.version)}'", setup), 'versions differ'
-    assert f"'resource/' + package_name" in setup or f"resource/{name}" in setup
+    assert "'resource/' + package_name" in setup or f"resource/{name}" in setup
     assert "'package.xml'" in setup, 'package.xml not installed to share/'
 
 

@@ -13,8 +13,13 @@ from pathlib import Path
 import pytest
 
 from pam_common.node_params import ParamSpec, unknown_parameter_warning
-from pam_common.params_files import (ParamsFileError, check_params_file, params_files_in,
-                                     rcl_problem, ros_args_problem)
+from pam_common.params_files import (
+    ParamsFileError,
+    check_params_file,
+    params_files_in,
+    rcl_problem,
+    ros_args_problem,
+)
 from pam_common.testing import MALFORMED_PARAMS_FILES, malformed_params_file
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -66,7 +66,7 @@ def test_zero_is_not_counted():
 def test_problem_is_about_the_last_period_only():
     gaps = fed(range(1, 1001))
     assert gaps.problem(0.001) == ''
-    for c in [1003] + list(range(1004, 2000)):     # 2 lost out of 999 due: 0.2 %
+    for c in [1003, *range(1004, 2000)]:     # 2 lost out of 999 due: 0.2 %
         gaps.update(c)
     message = gaps.problem(0.001)
     assert message.startswith('samples lost: 2 of 999 in the last period')

@@ -11,7 +11,7 @@ P = 1e-3
 
 def test_on_time_deadlines_do_not_drift():
     schedule = DeadlineSchedule(P, 100.0)
-    for n in range(100000):
+    for _ in range(100000):
         assert schedule.advance(schedule.deadline + 50e-6) == 0   # 50 us late each time
     assert schedule.deadline == pytest.approx(100.0 + 100000 * P, abs=1e-9)
 
