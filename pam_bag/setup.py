@@ -14,7 +14,8 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='MCAP bags for the PAM stack: the bag library, bag_record, bag_play, pam-bag-info, pam-bag-recover.',
+    description=('MCAP bags for the PAM stack: the bag library, bag_record, bag_play, '
+                 'pam-bag-info, pam-bag-recover.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

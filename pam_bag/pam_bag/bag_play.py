@@ -4,7 +4,7 @@
 A background thread reads the bag (the selected topics from `start_offset` on) chunk by chunk
 into a bounded read-ahead queue (`read_ahead_size` messages: memory stays bounded, playing starts
 at once however long the bag); a dedicated thread publishes each message's CDR bytes at
-t0 + (t_msg − t_first) / rate on absolute deadlines (no drift). Options:
+t0 + (t_msg - t_first) / rate on absolute deadlines (no drift). Options:
 rate factor, loop, topic selection, remapping, start offset, start paused (resume with the
 `~/resume` service, std_srvs/Trigger; `~/pause` pauses), /clock publishing at a fixed rate
 (the frozen bag time while paused, as `ros2 bag play --clock` does; never ahead of the next
@@ -21,8 +21,9 @@ package, a topic recorded with another definition of its type than the installed
 channel's RIHS01 topic_type_hash, or the hash of its embedded definition, differs from the
 installed type's, so no subscriber could read it) is one error line naming the file and the
 problem, exit code 2, before anything is published; a damaged chunk inside an otherwise
-complete file (its CRC does not match, or it does not decompress) is found when playback reaches it: the messages before it are played, then an
-error naming the file and the chunk, exit code 2 too (README, Exit codes).
+complete file (its CRC does not match, or it does not decompress) is found when playback
+reaches it: the messages before it are played, then an error naming the file and the chunk, exit
+code 2 too (README, Exit codes).
 """
 
 from __future__ import annotations
@@ -338,7 +339,8 @@ class BagPlayer(Node):
         else:
             print(f'[{NODE_NAME}] published {self.published} messages', flush=True)
         lost = [f'{pub.topic_name} {n}' for pub, n in zip(self.publishers_by_index,
-                                                           self.sent_unmatched) if n]
+                                                           self.sent_unmatched, strict=True)
+                if n]
         if lost:
             print(f'[{NODE_NAME}] sent before any subscriber matched: {", ".join(lost)}',
                   flush=True)

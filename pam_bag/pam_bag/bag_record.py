@@ -23,11 +23,10 @@ import threading
 import time
 
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
-from pam_bag.bags import (BagError, BagWriteError, BagWriter, check_split, known_type,
-                             qos_from_ints)
+from pam_bag.bags import BagError, BagWriteError, BagWriter, check_split, known_type, qos_from_ints
 from pam_common.node_params import ConfigError, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.stamps import ns_pair
@@ -171,9 +170,7 @@ class BagRecorder(Node):
                 self.skipped.add(topic)
                 self.get_logger().warn(f'not recording {topic}: {exc}')
                 continue
-            queue, clock = self.queue, time.time_ns
-
-            def on_message(data, topic=topic):
+            def on_message(data, topic=topic, queue=self.queue, clock=time.time_ns):
                 queue.append((topic, clock(), data))
             self.subscriptions_by_topic[topic] = self.create_subscription(
                 cls, topic, on_message, qos, raw=True)

@@ -33,10 +33,27 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .mcap_check import (CHUNK, DATA_END, FOOTER, MCAP_MAGIC, RECORD_HEAD, FileCheck, check_file,
-                         chunk_records, records, summary_problem)
-from .mcap_records import (CHANNEL, MESSAGE, SCHEMA, file_summary, metadata_records,
-                           parse_record, read_summary)
+from .mcap_check import (
+    CHUNK,
+    DATA_END,
+    FOOTER,
+    MCAP_MAGIC,
+    RECORD_HEAD,
+    FileCheck,
+    check_file,
+    chunk_records,
+    records,
+    summary_problem,
+)
+from .mcap_records import (
+    CHANNEL,
+    MESSAGE,
+    SCHEMA,
+    file_summary,
+    metadata_records,
+    parse_record,
+    read_summary,
+)
 
 METADATA = 'metadata.yaml'
 DEFAULT_CHUNK_INTERVAL = 1.0   # s: longest time a received message stays only in memory
@@ -105,8 +122,14 @@ def definition_hash(msgtype: str, definition: str) -> str:
 def make_qos(reliable: bool = True, depth: int = 100, transient_local: bool = False,
              keep_all: bool = False):
     """A rosbags Qos (the form of metadata.yaml's offered_qos_profiles)."""
-    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
-                                    QosReliability, QosTime)
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
     infinite = QosTime(sec=2147483647, nsec=4294967295)
     return Qos(history=QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST, depth=depth,
                reliability=QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
@@ -119,8 +142,14 @@ def make_qos(reliable: bool = True, depth: int = 100, transient_local: bool = Fa
 def qos_from_ints(history: int, depth: int, reliability: int, durability: int, liveliness: int,
                   deadline=(0, 0), lifespan=(0, 0), lease=(0, 0)):
     """A rosbags Qos from the integer enums of rmw (rclpy's QoSProfile policies use the same)."""
-    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
-                                    QosReliability, QosTime)
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
 
     def enum(cls, value):
         try:
@@ -315,7 +344,7 @@ def _storage_writer_class():
                                lambda data, base: _patch_summary(data, base, real.crc))
             real.close()
 
-        def stats(self, name: str) -> '_BagFile':
+        def stats(self, name: str) -> _BagFile:
             """What this file holds as of its last complete chunk (after an error) or now."""
             return _BagFile(name, self.message_start_time, self.message_end_time,
                             dict(self.channel_stats))
@@ -461,7 +490,8 @@ class BagWriter:
         storage.file_name = self.file_name or self._file_name(0)
 
         class _Writer(Writer):
-            STORAGE_PLUGINS = {StoragePlugin.MCAP: storage}
+            # rosbags' Writer takes its storage class from this table: one class per writer
+            STORAGE_PLUGINS = {StoragePlugin.MCAP: storage}   # noqa: RUF012 - rosbags' own hook
 
         self._writer = _Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
         if self.compression == 'zstd':
@@ -470,7 +500,7 @@ class BagWriter:
             raise BagError(f"unknown compression {self.compression!r}: use 'zstd' or 'none'")
         try:
             self._writer.open()
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             raise BagError(f'{self.path}: cannot create the bag: {exc}') from exc
         self.set_custom_data('recorder', 'pam_driver bag_record')
         self.closed = False
@@ -640,7 +670,7 @@ def read_metadata(path) -> dict:
         storage = info.get('storage_identifier')
         if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
             raise ValueError('relative_file_paths is not a list of file names')
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         raise BagError(f'{meta}: unreadable metadata: {exc}') from exc
     if storage != 'mcap':
         raise BagError(f'{meta}: storage {storage!r} is not supported (only mcap)')
@@ -671,7 +701,7 @@ def check_mcap(path) -> None:
             summary = read_summary(f, size)
         if summary is None:
             raise ValueError('no summary section')
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         raise BagError(f'{path}: corrupt MCAP file: {exc}') from exc
 
 
@@ -732,7 +762,7 @@ class BagSelection:
                 for conn, t, raw in reader.messages(connections=conns, start=self.first_ns):
                     yield t, index[conn.topic], bytes(raw)
                     count += 1
-        except Exception as exc:  # noqa: BLE001 - damaged, or changed since open_bag
+        except Exception as exc:   # damaged, or changed since open_bag
             where = self.files[0] if len(self.files) == 1 else self.path
             raise BagError(f'{where}: corrupt data after {count} messages: '
                            f'{self._first_damage(exc)} (`pam-bag-recover {self.path}` keeps the '
@@ -813,7 +843,7 @@ def open_bag(path, topics=None, start_offset: float = 0.0,
     try:
         reader = Reader(path)
         reader.open()
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         raise BagError(f'{path}: cannot open the bag: {exc}') from exc
     try:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
@@ -854,11 +884,11 @@ class BagContents:
         if topic not in self.topics:
             return []
         index, msgtype, out = self.topic_names.index(topic), self.topics[topic], []
-        for t, i, data in zip(self.times, self.topic_index, self.data):
+        for t, i, data in zip(self.times, self.topic_index, self.data, strict=True):
             if i == index:
                 try:
                     out.append((t, store.deserialize_cdr(data, msgtype)))
-                except Exception as exc:  # noqa: BLE001 - short, long or garbled CDR
+                except Exception as exc:   # short, long or garbled CDR
                     raise BagError(f'{self.path}: message {len(out) + 1} of {topic} is not a '
                                    f'valid {msgtype} ({len(data)} bytes: {exc}); was it '
                                    'recorded with another definition of the type?') from exc

@@ -73,7 +73,7 @@ class ReadAhead:
         return item
 
     def buffered(self) -> int:
-        """Items read but not yet taken (approximate: batches × batch size)."""
+        """Items read but not yet taken (approximate: batches x batch size)."""
         return self._queue.qsize() * self.batch + len(self._current) - self._pos
 
     def close(self) -> None:

@@ -142,8 +142,9 @@ def test_bad_bags_name_the_file(store, tmp_path):
 def damaged_chunk_bag(full, path, k):
     """A copy of the complete one-message-per-chunk bag `full` (the `chunked` fixture) whose
     chunk `k` holds garbage instead of its compressed records; summary and footer intact."""
-    from mcap.reader import make_reader
     import shutil
+
+    from mcap.reader import make_reader
     shutil.copytree(full, path)
     mcap = path / f'{full.name}.mcap'
     with open(mcap, 'rb') as f:
@@ -162,7 +163,7 @@ def test_open_bag_streams_what_load_bag_loads(store, tmp_path):
     assert selection.first_ns == 10**18 + 100_000_000
     loaded = bags.load_bag(tmp_path / 'b', start_offset=0.1)
     streamed = list(selection.messages())
-    assert streamed == list(zip(loaded.times, loaded.topic_index, loaded.data))
+    assert streamed == list(zip(loaded.times, loaded.topic_index, loaded.data, strict=True))
     assert [t for t, _, _ in streamed] == [10**18 + i * 10**6 for i in range(100, 500)]
     assert list(selection.messages()) == streamed      # again (a loop's next pass)
 
@@ -318,7 +319,7 @@ def test_split_by_size_gives_complete_files_under_the_limit(store, tmp_path):
     from ruamel.yaml import YAML
     meta = YAML(typ='safe').load((tmp_path / 'b' / 'metadata.yaml').read_text())
     entries = meta['rosbag2_bagfile_information']['files']
-    for f, entry in zip(files, entries):
+    for f, entry in zip(files, entries, strict=True):
         assert f.stat().st_size < limit + 5_000   # + metadata record and summary
         summary = _mcap_summary(f)
         assert len(summary.schemas) == 1 and len(summary.channels) == 1
@@ -359,7 +360,7 @@ def test_split_bag_stops_cleanly_on_a_write_error(store, tmp_path):
     soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
     written = 0
     try:
-        with pytest.raises(bags.BagWriteError, match='b_2.mcap: write failed'):
+        with pytest.raises(bags.BagWriteError, match=r'b_2\.mcap: write failed'):
             for i in range(100_000):
                 if len(w.files) == 2:    # the third file is open: limit each file to 20 kB
                     resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, hard))
@@ -457,7 +458,7 @@ def test_recover_truncated(store, chunked, tmp_path, where):
     full, chunks = chunked
     cut, n, dropped = CUTS[where](chunks[30])
     path = crashed(full, tmp_path / 'b', cut)
-    with pytest.raises(bags.BagError, match='metadata.yaml: missing'):
+    with pytest.raises(bags.BagError, match=r'metadata\.yaml: missing'):
         bags.load_bag(path)
     result = bags.recover_bag(path)
     assert result.counts == {'/pam/pressures': n} and result.dropped_bytes == dropped
@@ -602,7 +603,7 @@ def test_recover_refuses_what_it_cannot_or_need_not_repair(store, chunked, tmp_p
     missing directory, a .damaged file in the way."""
     full, chunks = chunked
     write_bag(store, tmp_path / 'ok', n=10)
-    with pytest.raises(bags.BagError, match='ok: a complete bag .* needs no recovery'):
+    with pytest.raises(bags.BagError, match=r'ok: a complete bag .* needs no recovery'):
         bags.recover_bag(tmp_path / 'ok')
     garbage = tmp_path / 'garbage'
     garbage.mkdir()

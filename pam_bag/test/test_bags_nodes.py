@@ -1,5 +1,6 @@
 """bag_record / bag_play / pam-bag-info as real processes on an isolated domain (~50 s)."""
 
+import itertools
 import subprocess
 import time
 from pathlib import Path
@@ -30,6 +31,7 @@ def test_record_sim_node(node_process, tmp_path_factory):
     _CACHE['bag'] = out
     from rosbags.rosbag2 import Reader
     from ruamel.yaml import YAML
+
     from pam_bag.bags import make_typestore
     meta = YAML(typ='safe').load((out / 'metadata.yaml').read_text())
     info = meta['rosbag2_bagfile_information']
@@ -50,7 +52,7 @@ def test_record_sim_node(node_process, tmp_path_factory):
     # count is only bounded here; loss at 4 topics x 1 kHz is measured by
     # benchmarks/bag_throughput.py, which compares published and recorded counts
     assert 0.6 * 1000 * duration < len(stamps) < 1000 * duration + 20
-    steps = [b - a for a, b in zip(stamps, stamps[1:])]
+    steps = [b - a for a, b in itertools.pairwise(stamps)]
     # realtime sim_node stamps with the wall clock (jitter of a loaded machine): check order
     assert min(steps) > 0, 'pressure samples reordered'
     from mcap.reader import make_reader
@@ -90,6 +92,7 @@ def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path
     assert code == 0, rec.stderr
     assert 'files)' in rec.stdout, rec.stdout
     from mcap.reader import make_reader
+
     from pam_bag.bags import bag_info, load_bag
     info = bag_info(out)
     names = [Path(f).name for f in info['files']]
@@ -126,8 +129,8 @@ def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path
 
 def test_play_remap_select_timing(node_process, probe):
     bag = _CACHE.get('bag') or pytest.skip('no recorded bag')
-    from pam_interfaces.msg import JointMeasurement, Pressures
     from pam_bag.bags import load_bag
+    from pam_interfaces.msg import JointMeasurement, Pressures
     expected = load_bag(bag, ['/pam/pressures'])
     n = len(expected.data)
     got = probe.subscribe(Pressures, '/replay/pressures', depth=2 * n)
@@ -196,7 +199,8 @@ def test_bag_info_prints_counts():
 # ------------------------------------------------------------- bag_play options on a small bag
 @pytest.fixture(scope='module')
 def small_bag(tmp_path_factory):
-    from test_bags_lib import write_bag   # the same test folder (pytest's prepend import mode)
+    from test_bags_lib import write_bag  # the same test folder (pytest's prepend import mode)
+
     from pam_bag.bags import make_typestore
     path = tmp_path_factory.mktemp('small') / 'b'
     write_bag(make_typestore(), path, n=N, period_ns=PERIOD)
@@ -228,7 +232,7 @@ def test_rate_scales_the_schedule(node_process, probe, small_bag):
                               f'remap:=/pam/pressures:=/rate{i}/pressures', name=f'play{i}')
                for i, r in enumerate(rates)]
     spans = []
-    for player, received in zip(players, got):
+    for player, received in zip(players, got, strict=True):
         player.wait_for(lambda received=received: len(received) >= N, 30.0, f'{N} messages')
         assert player.wait_exit(10.0) == 0, player.stderr
         items = received.items()
@@ -246,8 +250,8 @@ def test_loop_plays_again_after_the_end(node_process, probe, small_bag):
     assert player.alive()
     assert player.stop() == 0
     seen = [index(m) for m in got.messages()]
-    assert all(b == (a + 1) % N for a, b in zip(seen, seen[1:])), 'not in bag order'
-    assert sum(a == N - 1 and b == 0 for a, b in zip(seen, seen[1:])) >= 2
+    assert all(b == (a + 1) % N for a, b in itertools.pairwise(seen)), 'not in bag order'
+    assert sum(a == N - 1 and b == 0 for a, b in itertools.pairwise(seen)) >= 2
 
 
 def test_start_offset_starts_at_the_message_at_the_offset(node_process, probe, small_bag):
@@ -289,6 +293,7 @@ def test_start_paused_plays_nothing_until_resumed(node_process, probe, small_bag
 def burst_bag(tmp_path_factory):
     """3000 Pressures messages 0.1 ms apart (0.3 s)."""
     from test_bags_lib import write_bag
+
     from pam_bag.bags import make_typestore
     path = tmp_path_factory.mktemp('burst') / 'b'
     write_bag(make_typestore(), path, n=3000, period_ns=100_000)
@@ -315,6 +320,7 @@ def test_a_damaged_chunk_is_reported_after_playing_what_precedes_it(node_process
     still decompresses (only its CRC shows it) passes the checks at start; the player plays
     messages 0-19, then names the file and the chunk, exit 2 (bad input)."""
     from test_bags_lib import write_bag
+
     from pam_bag.bags import make_typestore
     from pam_bag.testing import damage_chunk
     bag = tmp_path / 'full'

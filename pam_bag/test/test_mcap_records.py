@@ -11,8 +11,18 @@ import pytest
 
 from pam_bag import bags
 from pam_bag.mcap_check import MCAP_MAGIC, chunk_records, records
-from pam_bag.mcap_records import (Channel, ChunkIndex, Message, Metadata, MetadataIndex, Schema,
-                                  file_summary, metadata_records, parse_record, read_summary)
+from pam_bag.mcap_records import (
+    Channel,
+    ChunkIndex,
+    Message,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    file_summary,
+    metadata_records,
+    parse_record,
+    read_summary,
+)
 
 BAG_ROOT = Path(__file__).resolve().parents[2] / 'bags'
 FILES = sorted(BAG_ROOT.glob('*/*.mcap'))
@@ -54,9 +64,7 @@ def test_metadata_records_are_the_reference_librarys(mcap_file):
 
 
 def test_every_record_in_the_chunks_is_the_reference_librarys(mcap_file):
-    from mcap.records import Channel as TheirChannel
-    from mcap.records import Message as TheirMessage
-    from mcap.records import Schema as TheirSchema
+    from mcap.records import Channel as TheirChannel, Message as TheirMessage, Schema as TheirSchema
     from mcap.stream_reader import StreamReader
     with mcap_file.open('rb') as f:
         theirs = [r for r in StreamReader(f).records
@@ -69,7 +77,7 @@ def test_every_record_in_the_chunks_is_the_reference_librarys(mcap_file):
             ours += [r for _, op, b in inner if isinstance(r := parse_record(op, b),
                                                           (Schema, Channel, Message))]
     assert len(ours) == len(theirs) > 1000
-    for mine, their in zip(ours, theirs):
+    for mine, their in zip(ours, theirs, strict=True):
         assert tuple(mine) == tuple(getattr(their, f) for f in type(mine)._fields)
 
 
@@ -98,7 +106,7 @@ def test_a_damaged_record_is_a_value_error():
     assert parse_record(0x0B, b'statistics: not read') is None
     with pytest.raises(ValueError, match='record cut short'):
         parse_record(0x04, b'\x01\x00\x02\x00\xff\x00\x00\x00topic')
-    with pytest.raises(ValueError, match='no footer|expected a footer'):
+    with pytest.raises(ValueError, match=r'no footer|expected a footer'):
         read_summary(io.BytesIO(MCAP_MAGIC * 8), len(MCAP_MAGIC) * 8)
 
 
