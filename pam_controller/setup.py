@@ -14,7 +14,8 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='Sensor-less PI control of the antagonistic PAM joint, references (reference_node, profile_player).',
+    description=('Sensor-less PI control of the antagonistic PAM joint, references '
+                 '(reference_node, profile_player).'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from pam_estimator.pam_ukf import INFO_FIELDS, DEFAULT_TUNING, UkfTuning, ukf_step
+from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, UkfTuning, ukf_step
 from pam_model.model import PamModel
 from pam_model.physics import joint_torque, muscle_forces, step_array
 from pam_model.sensor import PressureSensor, adc_reading

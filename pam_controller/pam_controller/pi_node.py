@@ -30,8 +30,6 @@ import time
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from std_srvs.srv import SetBool
-from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement, Reference,
-                                ValveCommand)
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
@@ -41,8 +39,21 @@ from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
-from pam_common.topics import (CONTROLLER_STATE, DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED,
-                               REFERENCE, VALVE_COMMAND)
+from pam_common.topics import (
+    CONTROLLER_STATE,
+    DEFAULT_NAMESPACE,
+    ESTIMATE,
+    JOINT_MEASURED,
+    REFERENCE,
+    VALVE_COMMAND,
+)
+from pam_interfaces.msg import (
+    ControllerState,
+    JointEstimate,
+    JointMeasurement,
+    Reference,
+    ValveCommand,
+)
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
 from .pi import ANTI_WINDUP, PiGains, validate_gains
@@ -127,7 +138,7 @@ class PiNode(Node):
         self.logs = ThrottledLogs(self.get_logger(), 1.0)
         self._log_reference = self.logs.new()
         self.guard = FiniteGuard(self.get_logger())
-        safe = dict(zip(('u1', 'u2'), self.loop.safe_command))
+        safe = dict(zip(('u1', 'u2'), self.loop.safe_command, strict=True))
         self.command_pub = self.guard.wrap(
             self.create_publisher(ValveCommand, VALVE_COMMAND, SAMPLE_QOS), safe=safe, whole=True)
         self.state_pub = self.guard.wrap(

@@ -17,7 +17,6 @@ import sys
 
 from rclpy.node import Node
 from rclpy.task import Future
-from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import ConfigError, ParamSpec, usage_text
@@ -25,6 +24,7 @@ from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, PRESSURES, VALVE_COMMAND
 from pam_controller.run_recorder import RunRecorder
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import U_MIN
 
 NODE_NAME = 'profile_player'
@@ -78,8 +78,7 @@ SUMMARY = [
 def profile_inputs(values: dict):
     """(N, 2) V: the chosen profile's valve voltages, one row per sample; ValueError if the
     profile's own checks reject the values."""
-    from pam_model.calibration_profiles import (free_calibration_profile,
-                                                locked_calibration_profile)
+    from pam_model.calibration_profiles import free_calibration_profile, locked_calibration_profile
     from pam_model.profiles import validation_profile
     Ts = 1.0 / values['rate']
     if values['profile'] == 'calibration_locked':

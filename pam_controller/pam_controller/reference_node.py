@@ -18,7 +18,6 @@ import sys
 
 import numpy as np
 from rclpy.node import Node
-from pam_interfaces.msg import Reference
 
 from pam_common.diagnostics import OK, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
@@ -26,6 +25,7 @@ from pam_common.node_params import ParamSpec, check_all, fail, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import LATEST_QOS
 from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
+from pam_interfaces.msg import Reference
 
 from .control_loop import ENVELOPE, MODE_NAMES
 

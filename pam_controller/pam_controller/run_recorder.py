@@ -68,7 +68,7 @@ class RunRecorder:
             return lines
         t = (self.stamps[:count] - self.stamps[0]) * 1e-9
         gaps = np.diff(t)
-        missing = max(0, int(round(t[-1] * rate)) + 1 - count)
+        missing = max(0, round(t[-1] * rate) + 1 - count)
         lines.append(f'  stamps span {t[-1]:.3f} s: mean rate {(count - 1) / max(t[-1], 1e-9):.1f}'
                      f' Hz, {missing} samples missing, largest gap {gaps.max() * 1e3:.2f} ms')
         p = self.p[:count]

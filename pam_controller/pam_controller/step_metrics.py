@@ -72,13 +72,13 @@ def step_report(t, reference, y, span: float, hold_min: float = 2.0) -> StepRepo
     h = t[1] - t[0] if len(t) > 1 else 1e-3
     steps = []
     previous = None
-    for a, b in zip(starts, ends):
+    for a, b in zip(starts, ends, strict=True):
         if (b - a) * h < hold_min:
             previous = reference[a]
             continue
         r = reference[a]
         err = np.abs(r - y[a:b])
-        last = slice(max(a, b - int(round(LAST_SECOND / h))), b)
+        last = slice(max(a, b - round(LAST_SECOND / h)), b)
         outside = np.flatnonzero(err > SETTLING_BAND * span)
         settling = 0.0 if len(outside) == 0 else (
             np.inf if outside[-1] == b - a - 1 else (outside[-1] + 1) * h)

@@ -69,10 +69,10 @@ import time
 
 import numpy as np
 import pytest
-from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 from std_srvs.srv import Trigger
 
 from pam_common.testing import STOP_TIMEOUT, stamp_ns
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
 STARTUP = 45.0            # s, a fresh process on a loaded 2-core machine
 PRE = 2.0                 # s at reference 0 once the loop runs (and the driver is armed)
@@ -100,17 +100,17 @@ DISTURBANCES = {'driver_node': ('safe output', 'device lost'), 'pi_node': ('no f
 
 def batch_steady_state_error(mode: str) -> float:
     """The same loop on the batch simulator (the lockstep loop of sim_node + ukf_node + pi_node)."""
+    from pam_controller.closed_loop import simulate_closed_loop
+    from pam_controller.pi_node import PARAMETERS
     from pam_model.mismatch import load_scenario
     from pam_model.model import PamModel
     from pam_model.parameters import load_parameters
-    from pam_controller.closed_loop import simulate_closed_loop
-    from pam_controller.pi_node import PARAMETERS
 
     spec = MODES[mode]
     defaults = {p.name: p.default for p in PARAMETERS}
     gains = (defaults[f'kp_{mode}'], defaults[f'ki_{mode}'])   # pi_node's defaults
     scenario = load_scenario('mild')
-    t = np.arange(int(round((PRE + HOLD) * 1000))) * 1e-3
+    t = np.arange(round((PRE + HOLD) * 1000)) * 1e-3
     reference = np.where(t < PRE, 0.0, spec['level'])
     locked = spec['locked']
     run, = simulate_closed_loop(PamModel(params=scenario.apply(load_parameters()), locked=locked),

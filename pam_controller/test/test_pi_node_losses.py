@@ -35,7 +35,7 @@ def test_gaps_in_the_estimates_sample_counter_are_reported(node_process, probe):
         publish(1)
         wait_until(commands_published, 0.2)
     # 2..100, 100 again (a repeated estimate), then 131..200: 30 samples lost
-    counters = list(range(2, 101)) + [100] + list(range(131, 201))
+    counters = [*range(2, 101), 100, *range(131, 201)]
     for sample in counters:
         publish(sample)
         time.sleep(0.002)      # paced: pi_node's keep-last 100 queue must lose none itself

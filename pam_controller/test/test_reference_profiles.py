@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from pam_controller.reference_node import PARAMETERS, check_values, profile_value, step_levels
 from pam_common.node_params import ConfigError, defaults
+from pam_controller.reference_node import PARAMETERS, check_values, profile_value, step_levels
 from pam_interfaces.msg import Reference
 
 
