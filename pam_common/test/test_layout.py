@@ -55,8 +55,7 @@ NODES = {'sim_node', 'driver_node', 'ukf_node', 'pi_node', 'reference_node', 'pr
 #: The skeleton's pieces: a node calls node_main and parameter_values, not these.
 PIECES = {'declare_parameters', 'cli_preamble', 'wants_help', 'run_node'}
 #: Nodes not on the skeleton yet, with who moves them (strict xfail: remove the entry once done).
-NOT_YET = {'driver_node': 'the driver helper moves driver_node onto the skeleton with its core '
-                          '(issue 14, driver_core)'}
+NOT_YET: dict[str, str] = {}
 
 
 # ---------------------------------------------------------------------------- the files
@@ -141,25 +140,22 @@ def _names_a_stamp_field(node: ast.AST) -> bool:
                or (isinstance(n, ast.Name) and n.id in STAMP_FIELDS) for n in ast.walk(node))
 
 
+def _converts_a_stamp(node: ast.AST) -> bool:
+    """sec * 1e9 + nanosec (a sum naming a stamp's field), divmod(x, 1e9), x // 1e9, x % 1e9."""
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+        return _names_a_stamp_field(node) and any(
+            isinstance(side, ast.BinOp) and isinstance(side.op, ast.Mult)
+            and (_is_ns_per_s(side.left) or _is_ns_per_s(side.right))
+            for side in (node.left, node.right))
+    if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.FloorDiv, ast.Mod)):
+        return _is_ns_per_s(node.right)
+    return (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            and node.func.id == 'divmod' and len(node.args) == 2 and _is_ns_per_s(node.args[1]))
+
+
 def stamp_conversions(tree: ast.AST) -> list[int]:
-    """(c): the lines that convert a stamp: sec * 1e9 + nanosec (a sum naming a stamp's field),
-    divmod(x, 1e9), x // 1e9, x % 1e9 (10**9, 1_000_000_000 or NS_PER_S)."""
-    lines = set()
-    for node in ast.walk(tree):
-        if (isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add)
-                and _names_a_stamp_field(node)):
-            for side in (node.left, node.right):
-                if (isinstance(side, ast.BinOp) and isinstance(side.op, ast.Mult)
-                        and (_is_ns_per_s(side.left) or _is_ns_per_s(side.right))):
-                    lines.add(node.lineno)
-        elif (isinstance(node, ast.BinOp) and isinstance(node.op, (ast.FloorDiv, ast.Mod))
-              and _is_ns_per_s(node.right)):
-            lines.add(node.lineno)
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-              and node.func.id == 'divmod' and len(node.args) == 2
-              and _is_ns_per_s(node.args[1])):
-            lines.add(node.lineno)
-    return sorted(lines)
+    """(c): the lines that convert a stamp (1e9 written 10**9, 1_000_000_000 or NS_PER_S too)."""
+    return sorted({node.lineno for node in ast.walk(tree) if _converts_a_stamp(node)})
 
 
 def _called(node: ast.AST) -> str | None:

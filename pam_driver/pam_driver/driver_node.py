@@ -43,31 +43,27 @@ import time
 from typing import Callable
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_common.executors import run_node
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import cli_preamble, declare_parameters
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import LATEST_QOS, SAMPLE_QOS
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import RateStatistics
+from pam_common.topics import (APPLIED_COMMAND, DEFAULT_NAMESPACE, JOINT_MEASURED, PRESSURES,
+                               VALVE_COMMAND)
 
 from pam_driver import daq_protocol as proto
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
 from pam_driver.driver_core import Action, DriverCore, SafetyConfig
 
 NODE_NAME = 'driver_node'
-DEFAULT_NAMESPACE = '/pam'
 HARDWARE_ID = 'pam-daq-board'
 DIAGNOSTICS_PERIOD = 1.0
 LOG_THROTTLE = 1.0
 REFUSED_LOG_PERIOD = 10.0     # s, an incompatible device is logged again at most this often
-
-SAMPLE_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        depth=100, durability=DurabilityPolicy.VOLATILE)
-
 
 class DeviceLost(Exception):
     """The device stopped answering (no samples, failed handshake)."""
@@ -86,8 +82,7 @@ class DriverNode(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        values = declare_parameters(self, PARAMETERS)
-        self.config = build_config(values)
+        self.config = parameter_values(self, PARAMETERS, check=build_config)
         self.cal = self.config['calibration']
         self._frame_id = self.config['frame_id']
         self._stop = threading.Event()
@@ -120,13 +115,13 @@ class DriverNode(Node):
 
         self._guard = FiniteGuard(self.get_logger())
         self._pub_pressures = self._guard.wrap(
-            self.create_publisher(Pressures, 'pressures', SAMPLE_QOS), hold=True)
+            self.create_publisher(Pressures, PRESSURES, SAMPLE_QOS), hold=True)
         self._pub_joint = self._guard.wrap(
-            self.create_publisher(JointMeasurement, 'joint_measured', SAMPLE_QOS), hold=True)
+            self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
         self._pub_applied = self._guard.wrap(
-            self.create_publisher(ValveCommand, '~/applied_command', 10),
+            self.create_publisher(ValveCommand, APPLIED_COMMAND, LATEST_QOS),
             safe=dict(zip(('u1', 'u2'), self.config['safe_output'])), whole=True)
-        self._sub = self.create_subscription(ValveCommand, 'valve_command', self._on_command,
+        self._sub = self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command,
                                              SAMPLE_QOS)
         self.create_service(Trigger, '~/arm', self._on_arm)
         self.create_service(Trigger, '~/estop', self._on_estop)
@@ -510,11 +505,7 @@ class DriverNode(Node):
 
 
 def main(args=None) -> int:
-    argv = sys.argv if args is None else list(args)
-    code = cli_preamble(argv, NODE_NAME, usage_text())
-    if code is not None:
-        return code
-    return run_node(DriverNode, NODE_NAME, args=argv, stop=lambda node: node.stop())
+    return node_main(DriverNode, NODE_NAME, usage_text(), args, stop=lambda node: node.stop())
 
 
 if __name__ == '__main__':
