@@ -114,7 +114,7 @@ check_prereqs
 
 mkdir -p "$BUILD"
 # colcon must not mistake the build tree or the venv's installed package.xml files for sources
-# (a colcon build in this same checkout, see the README).
+# (a colcon build in this same checkout, see docs/colcon.md).
 touch "$BUILD/COLCON_IGNORE"
 # Serialise concurrent runs (two `make test` at once).
 exec 9>"$BUILD/.setup.lock"

@@ -23,7 +23,7 @@ installed type's, so no subscriber could read it) is one error line naming the f
 problem, exit code 2, before anything is published; a damaged chunk inside an otherwise
 complete file (its CRC does not match, or it does not decompress) is found when playback
 reaches it: the messages before it are played, then an error naming the file and the chunk, exit
-code 2 too (README, Exit codes).
+code 2 too (docs/stopping.md, Exit codes).
 """
 
 from __future__ import annotations

@@ -63,7 +63,7 @@ ROS_DISTRO = 'jazzy'   # the bags' ros_distro (rosbag2 writes $ROS_DISTRO; rosba
 
 
 EXIT_BAD_INPUT = 2   # exit code of every tool for bad input: a missing, bad or damaged bag
-#                      (README, Exit codes)
+#                      (docs/stopping.md, Exit codes)
 
 
 class BagError(RuntimeError):

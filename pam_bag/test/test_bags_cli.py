@@ -1,6 +1,6 @@
 """pam-bag-info and pam-bag-recover as a user runs them on a damaged bag (8 bytes flipped in
 chunk 1 where zstd still decompresses: only the chunk's CRC shows it) and on a split bag with a
-file missing; the exit code for bad input is 2 (README, Exit codes)."""
+file missing; the exit code for bad input is 2 (docs/stopping.md, Exit codes)."""
 
 import shutil
 import subprocess
