@@ -54,8 +54,6 @@ NODES = {'sim_node', 'driver_node', 'ukf_node', 'pi_node', 'reference_node', 'pr
          'bag_record', 'bag_play', 'tracking_report'}
 #: The skeleton's pieces: a node calls node_main and parameter_values, not these.
 PIECES = {'declare_parameters', 'cli_preamble', 'wants_help', 'run_node'}
-#: Nodes not on the skeleton yet, with who moves them (strict xfail: remove the entry once done).
-NOT_YET: dict[str, str] = {}
 
 
 # ---------------------------------------------------------------------------- the files
@@ -292,7 +290,7 @@ def topic_and_qos_problems(path: Path) -> list[str]:
 @pytest.mark.parametrize('package', PACKAGES)
 def test_topic_names_and_qos_are_written_once(package):
     found = {str(f.relative_to(ROOT)): topic_and_qos_problems(f)
-             for f in production_files(package) if f.stem not in NOT_YET}
+             for f in production_files(package)}
     assert not {f: problems for f, problems in found.items() if problems}
 
 
@@ -325,9 +323,7 @@ def test_the_nodes_are_found():
 
 
 @pytest.mark.parametrize('node', sorted(NODES))
-def test_every_node_goes_through_the_skeleton(node, request):
-    if node in NOT_YET:
-        request.applymarker(pytest.mark.xfail(reason=NOT_YET[node], strict=True))
+def test_every_node_goes_through_the_skeleton(node):
     path = node_modules()[node]
     assert skeleton_problems(parse(path)) + topic_and_qos_problems(path) == []
 
@@ -338,8 +334,6 @@ def test_nothing_outside_pam_common_calls_the_pieces_itself():
         if package == 'pam_common':
             continue
         for f in production_files(package):
-            if f.stem in NOT_YET:
-                continue
             calls = {_called(n) for n in ast.walk(parse(f))} & PIECES
             if calls:
                 found[str(f.relative_to(ROOT))] = sorted(calls)
