@@ -25,6 +25,7 @@ from rclpy.task import Future
 
 from pam_common.diagnostics import status_values
 from pam_common.executors import make_executor
+from pam_common.finite_guard import FiniteGuard
 from pam_common.qos import SAMPLE_QOS
 from pam_common.stamps import stamp_ns
 from pam_common.topics import DIAGNOSTICS, JOINT_MEASURED, REFERENCE, absolute
@@ -73,7 +74,8 @@ class _ReferenceNode:
         self._mode = Reference.TORQUE if torque else Reference.ANGLE
         self.context = context
         self.node = rclpy.create_node('lockstep_reference', context=context)
-        self._reference = self.node.create_publisher(Reference, absolute(REFERENCE), SAMPLE_QOS)
+        self._reference = FiniteGuard(self.node.get_logger()).wrap(
+            self.node.create_publisher(Reference, absolute(REFERENCE), SAMPLE_QOS), hold=True)
         self.node.create_subscription(JointMeasurement, absolute(JOINT_MEASURED),
                                       self._on_truth, SAMPLE_QOS)
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics,
