@@ -60,8 +60,7 @@ def _decode(contents, store, topic):
 def load_bag_run(path, locked: bool | None = None,
                  namespace: str = stack_topics.DEFAULT_NAMESPACE) -> BagRun:
     """The run recorded in a bag (see the module doc); BagError / ValueError if it cannot be."""
-    from pam_bag.bags import (BagError, bag_files, check_definitions, load_bag,
-                                 make_typestore)
+    from pam_bag.bags import BagError, bag_files, check_definitions, load_bag, make_typestore
     topics = [stack_topics.absolute(t, namespace) for t in
               (stack_topics.PRESSURES, stack_topics.VALVE_COMMAND, stack_topics.JOINT_MEASURED)]
     contents = load_bag(path, check_types=False)

@@ -26,11 +26,22 @@ import numpy as np
 from numba import njit
 
 from pam_model.model import PamModel
-from pam_model.physics import (friction_torque, joint_torque, muscle_forces, rk4_step,
-                               subsystem_index, valve_opening)
+from pam_model.physics import (
+    friction_torque,
+    joint_torque,
+    muscle_forces,
+    rk4_step,
+    subsystem_index,
+    valve_opening,
+)
 
-from .unscented import (julier_sigma_points, julier_weights, measurement_update, symmetrise,
-                        unscented_transform)
+from .unscented import (
+    julier_sigma_points,
+    julier_weights,
+    measurement_update,
+    symmetrise,
+    unscented_transform,
+)
 
 N_STATE = 4
 KAPPA = 0.0
@@ -143,7 +154,7 @@ class UkfTuning(NamedTuple):
     R: tuple
     P0: tuple
 
-    def validate(self) -> 'UkfTuning':
+    def validate(self) -> UkfTuning:
         for name, diag, size in (('Q', self.Q, 4), ('R', self.R, 2), ('P0', self.P0, 4)):
             values = np.asarray(diag, dtype=float)
             if values.shape != (size,):

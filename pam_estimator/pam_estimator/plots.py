@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 
-
 def plot_evaluation(run, alone, ukf, path: str | Path, title: str = '') -> Path:
     """Three panels over time: pressures (measured, UKF), angle or torque (measured, model
     alone, UKF), and the two errors. Returns the path written."""

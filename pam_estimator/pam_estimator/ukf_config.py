@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
-from pam_common.node_params import (ConfigError, ParamSpec, check_all, check_array,
-                                    check_command, check_state, fail, merge_overrides,
-                                    usage_text as _usage_text)
+from pam_common.node_params import (
+    ConfigError,
+    ParamSpec,
+    check_all,
+    check_array,
+    check_command,
+    check_state,
+    fail,
+    merge_overrides,
+    usage_text as _usage_text,
+)
 from pam_common.sample_gaps import WARN_RATIO_PARAM
 from pam_model.model_choices import ForceModel, FrictionLaw
 

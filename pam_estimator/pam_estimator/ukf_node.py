@@ -28,7 +28,6 @@ import sys
 import numpy as np
 from rclpy.node import Node
 from std_srvs.srv import Trigger
-from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
@@ -38,6 +37,7 @@ from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, PRESSURES, VALVE_COMMAND
+from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from .estimator_core import EstimatorCore
 from .ukf_config import PARAMETERS, build_config, usage_text

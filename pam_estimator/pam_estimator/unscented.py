@@ -1,4 +1,5 @@
-"""Generic unscented-transform pieces (Julier sigma points, MODEL.md section 5), compiled with numba.
+"""Generic unscented-transform pieces (Julier sigma points, MODEL.md section 5), compiled with
+numba.
 
 Arrays only, no model: the PAM filter composes them with the model step (pam_ukf.py), and the
 linear-case test composes them with a matrix to compare against a closed-form Kalman filter.

@@ -17,8 +17,10 @@ REFERENCE = Path(__file__).resolve().parents[2] / 'bags'
 def _write(path, samples, commands, measured, store):
     """samples: [(stamp_ns, p1, p2)], commands: [(stamp_ns, u1, u2)] (in receive order),
     measured: [(stamp_ns, angle, omega, torque)]."""
-    from rosbags.typesys.stores.ros2_jazzy import builtin_interfaces__msg__Time as Time
-    from rosbags.typesys.stores.ros2_jazzy import std_msgs__msg__Header as Header
+    from rosbags.typesys.stores.ros2_jazzy import (
+        builtin_interfaces__msg__Time as Time,
+        std_msgs__msg__Header as Header,
+    )
     P = store.types['pam_interfaces/msg/Pressures']
     V = store.types['pam_interfaces/msg/ValveCommand']
     J = store.types['pam_interfaces/msg/JointMeasurement']

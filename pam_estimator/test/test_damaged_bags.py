@@ -1,7 +1,7 @@
 """pam-evaluate and pam-identify on a damaged bag: 8 bytes flipped in chunk 1 where zstd still
 decompresses (only the chunk's CRC shows it; before bags carried CRCs, pam-evaluate printed
 `model alone inf` and pam-identify wrote a parameter file). Each refuses with one error line
-naming the chunk, exit code 2 (README, Exit codes), and writes nothing."""
+naming the chunk, exit code 2 (docs/stopping.md, Exit codes), and writes nothing."""
 
 import subprocess
 

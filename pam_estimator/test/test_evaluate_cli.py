@@ -37,5 +37,6 @@ def test_shipped_params_files_are_accepted(node_process):
     for name in ('ukf_node.yaml', 'ukf_node_paper.yaml'):
         ukf = node_process('ukf_node', 'pam_estimator', '--params-file',
                            installed_config(name, 'pam_estimator'))
-        ukf.wait_for(lambda: 'estimating:' in ukf.stderr + ukf.stdout, 60.0, f'start with {name}')
+        ukf.wait_for(lambda ukf=ukf: 'estimating:' in ukf.stderr + ukf.stdout, 60.0,
+                     f'start with {name}')
         assert ukf.alive()

@@ -122,7 +122,7 @@ def test_a_bag_without_valve_commands_is_refused(bags, tmp_path):
     writer = BagWriter(tmp_path / 'no_commands')
     for topic, msgtype in source.topics.items():
         writer.add_topic(topic, msgtype)
-    for t, i, data in zip(source.times, source.topic_index, source.data):
+    for t, i, data in zip(source.times, source.topic_index, source.data, strict=True):
         writer.write(source.topic_names[i], t, data)
     writer.close()
     result = identify(tmp_path / 'no_commands', '-o', tmp_path / 'result')
@@ -158,7 +158,7 @@ def copy_bag(source_dir, target, keep):
     for topic, msgtype in source.topics.items():
         writer.add_topic(topic, msgtype)
     seen = {}
-    for t, i, data in zip(source.times, source.topic_index, source.data):
+    for t, i, data in zip(source.times, source.topic_index, source.data, strict=True):
         topic = source.topic_names[i]
         seen[topic] = seen.get(topic, -1) + 1
         if keep(topic, seen[topic]):

@@ -66,7 +66,7 @@ def test_a_burst_lost_in_the_queue_is_reported(node_process, probe):
 def test_time_going_backwards_100_times_logs_a_few_lines(node_process, probe):
     """100 samples with decreasing stamps within a few ms: each one resets the filter (counted on
     /diagnostics), but the log gets one line, not 100; the lines left out are counted."""
-    ukf, diagnostics, estimates, pub = start(node_process, probe)
+    ukf, diagnostics, _estimates, pub = start(node_process, probe)
     for k in range(100):
         pub.publish(pressures(0, 200.0 - k * 1e-3))
 

@@ -6,8 +6,11 @@ from __future__ import annotations
 
 import pytest
 
-from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
-                                assert_node_refuses_params_file)
+from pam_common.testing import (
+    MALFORMED_PARAMS_FILES,
+    STARTUP_TIMEOUT,
+    assert_node_refuses_params_file,
+)
 
 
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)

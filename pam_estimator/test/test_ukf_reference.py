@@ -3,10 +3,15 @@ filter built on filterpy's UnscentedKalmanFilter with JulierSigmaPoints(kappa=0)
 
 import numpy as np
 import pytest
-from pam_estimator.pam_ukf import PAPER_TUNING, DEFAULT_TUNING, PamUkf
+
+from pam_estimator.pam_ukf import DEFAULT_TUNING, PAPER_TUNING, PamUkf
 from pam_estimator.reference import filterpy_ukf
-from pam_estimator.unscented import (julier_sigma_points, julier_weights, measurement_update,
-                                     unscented_transform)
+from pam_estimator.unscented import (
+    julier_sigma_points,
+    julier_weights,
+    measurement_update,
+    unscented_transform,
+)
 from pam_model.model import PamModel
 from pam_model.profiles import validation_profile
 from pam_model.sensor import PressureSensor

@@ -9,12 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
+from pam_bag.bags import BagError
 from pam_model.cli.common import add_model_arguments, build_model, run_cli
 from pam_model.identification.campaign import CampaignPlan, simulate_campaign
 from pam_model.profiles import validation_profile
 from pam_model.simulate import simulate
-
-from pam_bag.bags import BagError
 
 from ..bag_runs import write_run_bag
 
@@ -23,7 +22,8 @@ def float_list(text: str) -> tuple:
     try:
         return tuple(float(v) for v in text.split(',') if v.strip())
     except ValueError:
-        raise argparse.ArgumentTypeError(f'expected comma-separated numbers, got {text!r}') from None
+        raise argparse.ArgumentTypeError(
+            f'expected comma-separated numbers, got {text!r}') from None
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -45,7 +45,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--hold', type=float, default=plan.hold, metavar='S',
                         help='static hold per voltage (default: %(default)s; 0: none)')
     parser.add_argument('--pair-hold', type=float, default=plan.pair_hold, metavar='S',
-                        help='hold per voltage pair of the jump phase (default: %(default)s; 0: none)')
+                        help='hold per voltage pair of the jump phase '
+                             '(default: %(default)s; 0: none)')
     parser.add_argument('--voltages', type=float_list, default=plan.voltages, metavar='V,...',
                         help='hold voltages (default: the shipped valve-map table nodes)')
     parser.add_argument('--free-duration', type=float, default=plan.free_duration, metavar='S',

@@ -6,13 +6,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from pam_bag.bags import BagError
 from pam_model.cli.common import run_cli
 from pam_model.metrics import Metrics
 from pam_model.model import PamModel
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
-
-from pam_bag.bags import BagError
 
 from ..bag_runs import load_run
 from ..evaluation import PAPER_TABLE_III, compare_models, evaluate, format_table, quantity
@@ -26,10 +25,12 @@ def parse_args(argv=None) -> argparse.Namespace:
                     'loop from the valve commands) and the sensor-less UKF (which also sees the '
                     'pressures) over a recorded run, and prints I, M, Q of the angle (deg, free '
                     'joint) or torque (N m, locked joint) errors beside the paper\'s values. '
-                    'Input: a run written by pam-simulate (.npz or .csv) or a recorded bag directory '
-                    '(/pam/pressures, /pam/valve_command, /pam/joint_measured; see README, Bags).')
+                    'Input: a run written by pam-simulate (.npz or .csv) or a recorded bag '
+                    'directory (/pam/pressures, /pam/valve_command, /pam/joint_measured; see '
+                    'README, Bags).')
     parser.add_argument('runs', nargs='+', metavar='RUN',
-                        help='recorded run(s): .npz, .csv or a bag directory (metadata.yaml + .mcap)')
+                        help='recorded run(s): .npz, .csv or a bag directory '
+                             '(metadata.yaml + .mcap)')
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument('--locked', dest='locked', action='store_true', default=None,
                       help='treat the run(s) as locked-joint (torque evaluated); default: a bag is '
