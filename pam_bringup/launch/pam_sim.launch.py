@@ -16,8 +16,14 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
-from pam_bringup.stack import (CONTROLLER, DEFAULT_NAMESPACE, REFERENCE, RIGS, every_node,
-                               stack_nodes)
+from pam_bringup.stack import (
+    CONTROLLER,
+    DEFAULT_NAMESPACE,
+    REFERENCE,
+    RIGS,
+    every_node,
+    stack_nodes,
+)
 
 
 def stack_actions(context):
@@ -57,4 +63,4 @@ def generate_launch_description():
             'use_reference', default_value='true', choices=['true', 'false'],
             description=f'Start the reference generator ({REFERENCE.name}).'),
     ]
-    return LaunchDescription(arguments + [OpaqueFunction(function=stack_actions)])
+    return LaunchDescription([*arguments, OpaqueFunction(function=stack_actions)])

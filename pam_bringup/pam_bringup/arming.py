@@ -72,10 +72,10 @@ class DriverArmer:
             context.try_shutdown()
 
     def _arm(self, node, executor) -> None:
-        from pam_interfaces.msg import ValveCommand
         from std_srvs.srv import Trigger
 
         from pam_common.qos import LATEST_QOS
+        from pam_interfaces.msg import ValveCommand
         steady = {'since': None, 'last': -math.inf}
 
         def on_command(_msg) -> None:

@@ -40,8 +40,16 @@ from pam_common.params_files import ros_args_problem
 
 from .arming import DriverArmer
 from .params_sections import section_keys, section_warning
-from .stack import (DEFAULT_NAMESPACE, RIGS, MissingExecutable, default_params_file,
-                    locate_executables, needs_arming, node_argv, stack_nodes)
+from .stack import (
+    DEFAULT_NAMESPACE,
+    RIGS,
+    MissingExecutable,
+    default_params_file,
+    locate_executables,
+    needs_arming,
+    node_argv,
+    stack_nodes,
+)
 from .supervisor import Child, Output, Supervisor, child_environment
 
 PROG = 'pam-bringup'

@@ -98,7 +98,7 @@ def main(argv=None) -> int:
 
     report = None
 
-    def pass_on(signum, frame) -> None:   # noqa: ARG001
+    def pass_on(signum, frame) -> None:
         if signum != signal.SIGINT and report is not None and report.poll() is None:
             report.send_signal(signal.SIGINT)   # a Ctrl-C reaches it from the terminal itself
 

@@ -63,8 +63,8 @@ class _ReferenceNode:
 
     def __init__(self, context, levels, hold: float, torque: bool, node_names: list[str]):
         self.levels = levels
-        self.hold_ns = int(round(hold * 1e9))
-        self.end_ns = int(round(len(levels) * hold * 1e9))
+        self.hold_ns = round(hold * 1e9)
+        self.end_ns = round(len(levels) * hold * 1e9)
         self.torque = torque
         self.samples: dict = {}            # stamp ns -> (true value, reference)
         self.statuses: dict = {}           # node name -> its last DiagnosticStatus

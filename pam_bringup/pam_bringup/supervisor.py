@@ -194,7 +194,7 @@ class Supervisor:
         except BlockingIOError:
             pass
 
-    def _on_signal(self, signum, frame) -> None:   # noqa: ARG002
+    def _on_signal(self, signum, frame) -> None:
         self.signals.append(signum)   # the main thread acts on it (set_wakeup_fd wakes it)
 
     def install_signal_handlers(self) -> None:
@@ -216,7 +216,8 @@ class Supervisor:
                 child.proc = subprocess.Popen(
                     child.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                     stderr=subprocess.STDOUT, env=self.env, cwd=self.cwd,
-                    preexec_fn=_child_setup, close_fds=True)
+                    preexec_fn=_child_setup,   # noqa: PLW1509 - before our threads start
+                    close_fds=True)
                 self.out.say(f'started {child.name} ({child.role}), pid '
                              f'{child.proc.pid}: {shlex.join(child.argv)}')
         finally:

@@ -16,15 +16,14 @@ from bisect import bisect_right
 import numpy as np
 from rclpy.node import Node
 from rclpy.task import Future
-from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
 from pam_common.node_params import ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.stamps import stamp_ns
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, REFERENCE, VALVE_COMMAND
-
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
 NODE_NAME = 'tracking_report'
 PARAMETERS = (

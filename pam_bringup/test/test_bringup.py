@@ -20,12 +20,12 @@ from pathlib import Path
 
 import pytest
 import yaml
-from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from pam_bringup.params_sections import key_pattern, section_keys, sections_for
 from pam_bringup.stack import default_params_file, every_node
 from pam_common.executables import find_executable
 from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable, stamp_ns
+from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 WINDOW = 1.5        # s, rate measurement window
 SETTLE = 0.5        # s, after the first message, before the window

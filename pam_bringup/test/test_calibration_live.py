@@ -69,7 +69,7 @@ def command_coverage(bag):
     store = make_typestore()
     contents = load_bag(bag, ['/pam/pressures', '/pam/valve_command'])
     stamps = {t: [] for t in contents.topic_names}
-    for ti, data in zip(contents.topic_index, contents.data):
+    for ti, data in zip(contents.topic_index, contents.data, strict=True):
         topic = contents.topic_names[ti]
         s = store.deserialize_cdr(data, contents.topics[topic]).header.stamp
         stamps[topic].append(stamp_ns(s))

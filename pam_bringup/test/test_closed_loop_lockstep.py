@@ -16,7 +16,7 @@ def test_lockstep_closed_loop_meets_the_targets(mode):
     levels, target = CASES[mode]
     domain, lock = claim_domain(f'lockstep_{mode}')
     with lock:
-        report, t, reference, truth = run_lockstep_steps(
+        report, t, _reference, _truth = run_lockstep_steps(
             mode, levels, hold=8.0, domain_id=domain, timeout=240.0)
     assert len(report.steps) == 3 and t[-1] >= 24.0
     assert report.worst_error <= target, '\n'.join(report.lines())

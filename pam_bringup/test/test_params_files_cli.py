@@ -9,9 +9,13 @@ from __future__ import annotations
 import pytest
 
 from pam_bringup.params_sections import section_keys, sections_for
-from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
-                                assert_node_refuses_params_file, assert_params_file_error,
-                                malformed_params_file)
+from pam_common.testing import (
+    MALFORMED_PARAMS_FILES,
+    STARTUP_TIMEOUT,
+    assert_node_refuses_params_file,
+    assert_params_file_error,
+    malformed_params_file,
+)
 
 
 @pytest.mark.parametrize('kind', MALFORMED_PARAMS_FILES)
@@ -51,4 +55,5 @@ def test_pi_node_unknown_parameter_names_warn(node_process, tmp_path):
     for name, known in (('kp_angel', 'kp_angle'), ('anti_windp', 'anti_windup')):
         expected = (f"ignoring unknown parameter '{name}': did you mean '{known}'? "
                     '(see pi_node --help)')
-        pi.wait_for(lambda: expected in pi.stderr, STARTUP_TIMEOUT, f'the warning about {name}')
+        pi.wait_for(lambda expected=expected: expected in pi.stderr, STARTUP_TIMEOUT,
+                    f'the warning about {name}')

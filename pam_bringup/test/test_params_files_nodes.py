@@ -10,8 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from pam_common.testing import (MALFORMED_PARAMS_FILES, STARTUP_TIMEOUT,
-                                assert_node_refuses_params_file)
+from pam_common.testing import (
+    MALFORMED_PARAMS_FILES,
+    STARTUP_TIMEOUT,
+    assert_node_refuses_params_file,
+)
 
 
 def written(tmp_path: Path, name: str, text: str) -> Path:
