@@ -17,7 +17,8 @@ setup(
     zip_safe=False,
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
-    description='What faces the PAM rig, real or simulated: driver_node, the DAQ protocol, calibration, pam-emulator, sim_node.',
+    description=('What faces the PAM rig, real or simulated: driver_node, the DAQ protocol, '
+                 'calibration, pam-emulator, sim_node.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import yaml
 
@@ -151,7 +152,7 @@ class _Reader:
             self.fail(key, f'must be > 0, got {value:g}')
         if nonzero and value == 0.0:
             self.fail(key, 'must not be 0')
-        if low is not None and value < low or high is not None and value > high:
+        if (low is not None and value < low) or (high is not None and value > high):
             self.fail(key, f'{value:g} is out of range [{low}, {high}]')
         return value
 

@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
-from pam_common.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
-                                    check_array, check_command, fail, merge_overrides,
-                                    wants_help)
-from pam_common.node_params import usage_text as _usage_text
+from pam_common.node_params import (
+    U_MAX,
+    U_MIN,
+    ConfigError,
+    ParamSpec,
+    check_all,
+    check_array,
+    check_command,
+    fail,
+    merge_overrides,
+    usage_text as _usage_text,
+    wants_help,
+)
 
 __all__ = ['PARAMETERS', 'ConfigError', 'build_config', 'usage_text', 'wants_help']
 

@@ -31,8 +31,9 @@ executor's commands and services), so that a decision and its COMMAND frame are 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, NamedTuple, Sequence
+from typing import Any, NamedTuple
 
 from pam_model.valve_voltage import U_MAX, U_MIN, sanitise_command
 

@@ -38,8 +38,8 @@ import sys
 import time
 import tty
 
-from pam_driver import daq_protocol as proto
 from pam_common.timing import DeadlineSchedule
+from pam_driver import daq_protocol as proto
 
 MAX_PENDING = 65536   # bytes queued for a host that does not read: beyond, dropped
 HOST_SILENCE_STOP = 1.0  # s without host frames: stop streaming
@@ -185,11 +185,11 @@ class Every:
 
 class Emulator:
     def __init__(self, args):
+        from pam_driver.calibration import load
         from pam_model.cli.common import build_model
         from pam_model.model import PamModel
         from pam_model.rig import SimulatedRig
         from pam_model.sensor import PressureSensor
-        from pam_driver.calibration import load
 
         self.args = args
         self.cal = load(args.calibration)

@@ -9,18 +9,38 @@ front; the rest of pam_model lazily, so that `sim_node --help` stays instant.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
-from pam_common.node_params import (ConfigError, ParamSpec, U_MAX, U_MIN, check_all,
-                                    check_command, check_state, fail, merge_overrides,
-                                    wants_help)
-from pam_common.node_params import defaults as _defaults
-from pam_common.node_params import usage_text as _usage_text
+from pam_common.node_params import (
+    U_MAX,
+    U_MIN,
+    ConfigError,
+    ParamSpec,
+    check_all,
+    check_command,
+    check_state,
+    defaults as _defaults,
+    fail,
+    merge_overrides,
+    usage_text as _usage_text,
+    wants_help,
+)
 from pam_model.model_choices import ForceModel, FrictionLaw
 
-__all__ = ['PARAMETERS', 'ConfigError', 'SimConfig', 'U_MAX', 'U_MIN', 'build_config',
-           'defaults', 'describe', 'usage_text', 'wants_help']
+__all__ = [
+    'PARAMETERS',
+    'U_MAX',
+    'U_MIN',
+    'ConfigError',
+    'SimConfig',
+    'build_config',
+    'defaults',
+    'describe',
+    'usage_text',
+    'wants_help',
+]
 
 #: Choices of the string parameters (friction_law and force_model: the names of FrictionLaw and
 #: ForceModel).

@@ -77,18 +77,17 @@ import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.stamps import ns_stamp, stamp_ns
-from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
-from pam_common.topics import (CLOCK, DEFAULT_NAMESPACE, JOINT_MEASURED, PRESSURES,
-                               VALVE_COMMAND)
+from pam_common.topics import CLOCK, DEFAULT_NAMESPACE, JOINT_MEASURED, PRESSURES, VALVE_COMMAND
+from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
 
 NODE_NAME = 'sim_node'

@@ -4,14 +4,23 @@ import types
 
 import pytest
 
-from pam_common.testing import (all_finite, diagnostic_statuses, installed_config,  # noqa: F401
-                                node_process, probe, ros_context, ros_domain, stamp_ns,
-                                wait_until)
+from pam_common.testing import (
+    all_finite,
+    diagnostic_statuses,
+    installed_config,
+    node_process,
+    probe,
+    ros_context,
+    ros_domain,
+    stamp_ns,
+    wait_until,
+)
 
 
 @pytest.fixture
 def sim_node(node_process):
-    """Factory: sim_node(*ros_args) starts `sim_node --ros-args *ros_args` (raw=True: exact argv)."""
+    """Factory: sim_node(*ros_args) starts `sim_node --ros-args *ros_args` (raw=True: exact
+    argv)."""
     def start(*args, raw: bool = False):
         return node_process('sim_node', 'pam_driver', *args, raw=raw)
     return start

@@ -50,12 +50,11 @@ def test_garbage_and_crc_errors_resynchronise():
     for i, f in enumerate(frames):
         if i % 7 == 3:
             stream += bytes(rng.randrange(256) for _ in range(rng.randint(1, 20)))
-        if i % 11 == 5:
-            b = bytearray(f)
-            b[rng.randrange(proto.HEADER_SIZE, len(b))] ^= 0x10
-            f = bytes(b)
-            corrupted += 1
+        start = len(stream)
         stream += f
+        if i % 11 == 5:
+            stream[rng.randrange(start + proto.HEADER_SIZE, len(stream))] ^= 0x10
+            corrupted += 1
     d = proto.Decoder()
     got = []
     for i in range(0, len(stream), 13):

@@ -79,7 +79,7 @@ def test_unreadable_and_bad_yaml(tmp_path):
 def test_driver_config_reports_calibration_errors(tmp_path):
     from pam_driver.driver_config import ConfigError, build_config
     path = _write(tmp_path, lambda d: d['adc'].__setitem__('bits', 4))
-    with pytest.raises(ConfigError, match="calibration_file.*adc.bits"):
+    with pytest.raises(ConfigError, match=r"calibration_file.*adc\.bits"):
         build_config({'calibration_file': str(path)})
     with pytest.raises(ConfigError, match='valve_limits'):
         build_config({'valve_limits': [5.0, 1.0]})

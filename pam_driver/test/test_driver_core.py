@@ -10,8 +10,7 @@ import pytest
 
 from pam_driver import calibration
 from pam_driver.driver_config import build_config
-from pam_driver.driver_core import (NOTHING, OUT_OF_RANGE_SAMPLES, DriverCore, Log,
-                                    SafetyConfig)
+from pam_driver.driver_core import NOTHING, OUT_OF_RANGE_SAMPLES, DriverCore, Log, SafetyConfig
 
 CAL = calibration.load()
 SAFE = (0.0, 0.0)

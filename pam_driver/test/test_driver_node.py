@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -10,10 +11,10 @@ import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from std_srvs.srv import Trigger
 
 from pam_driver import calibration
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 STARTUP = 45.0
 
@@ -234,7 +235,7 @@ def test_injected_faults_are_counted_and_survived(rig):
     # may have got its first sample only after the replug (discovery can take 3 s): the unplug's
     # gap is read from the driver's own counts
     counters = [m.sample for m in r.pressures.messages()]
-    steps = [b - a for a, b in zip(counters, counters[1:])]
+    steps = [b - a for a, b in itertools.pairwise(counters)]
     assert counters[0] >= 1 and min(steps) >= 1, 'the counter never repeats nor goes back'
     missed = int(values['last sample counter']) - int(values['samples received'])
     assert missed > 500, ('the unplugged second is a gap', values)
@@ -353,7 +354,7 @@ def test_default_watchdog_trips_after_50_ms(rig):
 
 
 def _approx(u, expected):
-    return u is not None and all(abs(a - b) < 0.01 for a, b in zip(u, expected))
+    return u is not None and all(abs(a - b) < 0.01 for a, b in zip(u, expected, strict=True))
 
 
 def test_safe_output_on_internal_error_and_at_sigterm(rig):

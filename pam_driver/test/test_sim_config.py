@@ -4,10 +4,16 @@ import math
 
 import pytest
 
-from pam_driver.sim_config import (PARAMETERS, ConfigError, build_config, defaults, usage_text,
-                                   wants_help)
 import pam_driver.sim_config as sim_config
 from pam_common.testing import assert_takes_exactly
+from pam_driver.sim_config import (
+    PARAMETERS,
+    ConfigError,
+    build_config,
+    defaults,
+    usage_text,
+    wants_help,
+)
 from pam_model.model_choices import ForceModel, FrictionLaw
 
 CONTRACT = ('plant_parameters', 'mismatch', 'friction_law', 'force_model', 'joint_mode',

@@ -6,9 +6,9 @@ import math
 import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
-from pam_interfaces.msg import Pressures, ValveCommand
 
 from pam_common.stamps import ns_stamp
+from pam_interfaces.msg import Pressures, ValveCommand
 
 STEPS = 400
 H_NS = 1_000_000          # ns, model step at the default 1 kHz
@@ -112,7 +112,7 @@ def test_lockstep_ignores_commands_from_the_past(sim_node, probe, helpers):
         return None
 
     sim.wait_for(lambda: reported() is not None, 10.0, '/diagnostics to count 4 commands')
-    status, values = reported()
+    _status, values = reported()
     assert values['past commands ignored'] == '1', values
     assert values['timing'] == 'lockstep'
     assert max(stamps) == 3 * H_NS, 'no step without a command'

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 RATE = 1000.0                  # Hz, default rate
@@ -45,9 +47,9 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     stamps = [helpers.stamp_ns(m.header.stamp) * 1e-9 for m in window]
 
     assert len(stamps) > 100, f'only {len(stamps)} samples in {MEASURE} s'
-    assert all(b > a for a, b in zip(stamps, stamps[1:])), 'stamps must strictly increase'
+    assert all(b > a for a, b in itertools.pairwise(stamps)), 'stamps must strictly increase'
     counters = [m.sample for m in window]
-    assert all(b > a for a, b in zip(counters, counters[1:])), 'so must Pressures.sample'
+    assert all(b > a for a, b in itertools.pairwise(counters)), 'so must Pressures.sample'
     assert counters[-1] - counters[0] + 1 >= len(window) and counters[0] >= 1
     span = stamps[-1] - stamps[0]
     rate = (len(stamps) - 1) / span
@@ -148,7 +150,7 @@ def test_bad_commands_are_sanitised_counted_and_reported(sim_node, probe, helper
     sim.wait_for(lambda: len(pressures) > count + 200, 10.0, 'more samples after bad commands')
     assert sim.alive()
     assert all(helpers.all_finite((m.p1, m.p2)) for m in pressures.messages())
-    assert len([m for m in pressures.since(sent_at)]) > 200
+    assert len(list(pressures.since(sent_at))) > 200
     # the warning is throttled: a handful of lines, not one per command per second
     assert sim.stderr.count('bad valve_command') <= 3, sim.stderr
 
