@@ -40,11 +40,10 @@ import math
 import sys
 import threading
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from rclpy.node import Node
 from std_srvs.srv import Trigger
-from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
@@ -52,12 +51,17 @@ from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import LATEST_QOS, SAMPLE_QOS
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import RateStatistics
-from pam_common.topics import (APPLIED_COMMAND, DEFAULT_NAMESPACE, JOINT_MEASURED, PRESSURES,
-                               VALVE_COMMAND)
-
+from pam_common.topics import (
+    APPLIED_COMMAND,
+    DEFAULT_NAMESPACE,
+    JOINT_MEASURED,
+    PRESSURES,
+    VALVE_COMMAND,
+)
 from pam_driver import daq_protocol as proto
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
 from pam_driver.driver_core import Action, DriverCore, SafetyConfig
+from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 NODE_NAME = 'driver_node'
 HARDWARE_ID = 'pam-daq-board'
@@ -120,7 +124,7 @@ class DriverNode(Node):
             self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
         self._pub_applied = self._guard.wrap(
             self.create_publisher(ValveCommand, APPLIED_COMMAND, LATEST_QOS),
-            safe=dict(zip(('u1', 'u2'), self.config['safe_output'])), whole=True)
+            safe=dict(zip(('u1', 'u2'), self.config['safe_output'], strict=True)), whole=True)
         self._sub = self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command,
                                              SAMPLE_QOS)
         self.create_service(Trigger, '~/arm', self._on_arm)
@@ -235,7 +239,8 @@ class DriverNode(Node):
                 self._warn_not_connected(backoff)
             except Exception as exc:  # noqa: BLE001 - never die: safe output, report, retry
                 error = self._last_error = f'internal error: {type(exc).__name__}: {exc}'
-                self._decide(lambda: self._core.on_internal_error(error))
+                # B023: _decide runs the lambda now, not after the loop moved on
+                self._decide(lambda: self._core.on_internal_error(error))  # noqa: B023
             finally:
                 try:
                     self._disconnect()
@@ -374,7 +379,7 @@ class DriverNode(Node):
                 except proto.ProtocolError:
                     with self._lock:
                         self._protocol_errors += 1
-            self._decide(lambda: self._core.on_tick(now))
+            self._decide(lambda: self._core.on_tick(now))  # noqa: B023 - _decide runs it now
             if now >= next_heartbeat:
                 with self._io_lock:
                     seq = self._next_seq()
