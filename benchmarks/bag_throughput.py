@@ -23,14 +23,13 @@ from pathlib import Path
 os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 100 + 120))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
-import rclpy  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
-from pam_common.stamps import ns_stamp  # noqa: E402
-from pam_interfaces.msg import (JointEstimate, JointMeasurement, Pressures,  # noqa: E402
-                                ValveCommand)
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from pam_bag.bags import bag_info, load_bag, make_typestore  # noqa: E402
-from pam_common.sample_gaps import SampleGaps, loss_summary  # noqa: E402
+from pam_bag.bags import bag_info, load_bag, make_typestore
+from pam_common.sample_gaps import SampleGaps, loss_summary
+from pam_common.stamps import ns_stamp
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 
 def main() -> int:
@@ -59,7 +58,7 @@ def main() -> int:
         delay = due - time.monotonic()
         if delay > 0:
             time.sleep(delay)
-        for pub, msg in zip(pubs, msgs):
+        for pub, msg in zip(pubs, msgs, strict=True):
             msg.header.stamp = ns_stamp(k * 1_000_000)
             if hasattr(msg, 'sample'):
                 msg.sample = k

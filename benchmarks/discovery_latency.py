@@ -82,8 +82,9 @@ def main():
     print(f'\n{len(results)} rounds (profile: {args.profile or "Fast DDS defaults"}): '
           f'missed for good (> {args.wait:g} s): {missed}')
     if lags:
-        print(f'|lag| between the two topics\' first messages: median {lags[len(lags) // 2]:.2f} s, '
-              f'max {lags[-1]:.2f} s, rounds >= 1 s: {sum(v >= 1.0 for v in lags)}, '
+        print(f'|lag| between the two topics\' first messages: median '
+              f'{lags[len(lags) // 2]:.2f} s, max {lags[-1]:.2f} s, '
+              f'rounds >= 1 s: {sum(v >= 1.0 for v in lags)}, '
               f'>= 2 s: {sum(v >= 2.0 for v in lags)}')
 
 

@@ -12,7 +12,6 @@ alone on I, M and Q for both.
 import argparse
 
 from accuracy_scenario import scenario_runs
-
 from pam_estimator.evaluation import evaluate, format_table
 from pam_estimator.pam_ukf import TUNINGS
 from pam_model.model import PamModel

@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import NamedTuple
 
-from fault_inputs import (Feed, Parameters, command_message, copy_bag, lockstep_command)
+from fault_inputs import Feed, Parameters, command_message, copy_bag, lockstep_command
 from fault_stack import maps_holds, run_tool
 from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns

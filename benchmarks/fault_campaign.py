@@ -41,29 +41,89 @@ import signal
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import rclpy
 from rclpy.context import Context
 
-from fault_actions import (READERS, arm_driver, board, commanding, commands_to, damaged_bag,
-                           driver_commands, feed_values, in_turn, kill, kill_board,
-                           kill_recorder, lockstep, lockstep_decreasing, loop_running, observe,
-                           params_file_to_all, reference, replay, set_parameters,
-                           start_with_bad_value, stopped_while_importing,
-                           unknown_name_in_every_node, wait_diag)
-from fault_checks import (Verdict, accepted, alive, all_of, applied, bad_value_refused,
-                          commands_of, diag_is, estimates_of, every_answer, level_at_least,
-                          params_file_refused, quiet_exits, refused, replay_counts,
-                          replay_estimated, rises, safe_within, status_seen, stepped,
-                          streams_on, tools_answer, unknown_name_warned)
-from fault_inputs import (HUGE, INF, NAN, Feed, command_message, estimate_message,
-                          flip_in_chunk, flip_unnoticed, lockstep_command, pressures_message,
-                          remove_metadata, remove_split_file, truncate)
-from fault_stack import (NodeSpec, Stack, Tool, campaign_domain, new_folder, number, run_tool,
-                         traceback_count)
+from fault_actions import (
+    READERS,
+    arm_driver,
+    board,
+    commanding,
+    commands_to,
+    damaged_bag,
+    driver_commands,
+    feed_values,
+    in_turn,
+    kill,
+    kill_board,
+    kill_recorder,
+    lockstep,
+    lockstep_decreasing,
+    loop_running,
+    observe,
+    params_file_to_all,
+    reference,
+    replay,
+    set_parameters,
+    start_with_bad_value,
+    stopped_while_importing,
+    unknown_name_in_every_node,
+    wait_diag,
+)
+from fault_checks import (
+    Verdict,
+    accepted,
+    alive,
+    all_of,
+    applied,
+    bad_value_refused,
+    commands_of,
+    diag_is,
+    estimates_of,
+    every_answer,
+    level_at_least,
+    params_file_refused,
+    quiet_exits,
+    refused,
+    replay_counts,
+    replay_estimated,
+    rises,
+    safe_within,
+    status_seen,
+    stepped,
+    streams_on,
+    tools_answer,
+    unknown_name_warned,
+)
+from fault_inputs import (
+    HUGE,
+    INF,
+    NAN,
+    Feed,
+    command_message,
+    estimate_message,
+    flip_in_chunk,
+    flip_unnoticed,
+    lockstep_command,
+    pressures_message,
+    remove_metadata,
+    remove_split_file,
+    truncate,
+)
+from fault_stack import (
+    NodeSpec,
+    Stack,
+    Tool,
+    campaign_domain,
+    new_folder,
+    number,
+    run_tool,
+    traceback_count,
+)
 from pam_common.sample_gaps import SampleGaps
 from pam_common.testing import MALFORMED_PARAMS_FILES, NodeProcess, Probe, child_env
 
@@ -100,7 +160,7 @@ class Ctx:
     """What a case's act and check see: the group's stack and inputs, /diagnostics before and
     after, the tools it ran."""
 
-    def __init__(self, run: 'GroupRun'):
+    def __init__(self, run: GroupRun):
         self.run = run
         self.stack: Stack | None = run.stack
         self.io = run.io
@@ -162,8 +222,15 @@ class Group:
 
 def _msgs():
     from diagnostic_msgs.msg import DiagnosticArray  # noqa: F401
-    from pam_interfaces.msg import (ControllerState, JointEstimate, JointMeasurement,
-                                    Pressures, Reference, ValveCommand)
+
+    from pam_interfaces.msg import (
+        ControllerState,
+        JointEstimate,
+        JointMeasurement,
+        Pressures,
+        Reference,
+        ValveCommand,
+    )
     return dict(ControllerState=ControllerState, JointEstimate=JointEstimate,
                 JointMeasurement=JointMeasurement, Pressures=Pressures, Reference=Reference,
                 ValveCommand=ValveCommand)
@@ -294,10 +361,10 @@ def driver(*params, streams: bool = True, ping: bool = False) -> NodeSpec:
 
 
 RIG_OUT = [(M['Pressures'], '/pam/pressures'), (M['JointMeasurement'], '/pam/joint_measured')]
-DRIVER_OUT = RIG_OUT + [(M['ValveCommand'], '/pam/driver_node/applied_command')]
-LOOP_OUT = RIG_OUT + [(M['JointEstimate'], '/pam/estimate'),
-                      (M['ValveCommand'], '/pam/valve_command'),
-                      (M['ControllerState'], '/pam/controller_state')]
+DRIVER_OUT = [*RIG_OUT, (M['ValveCommand'], '/pam/driver_node/applied_command')]
+LOOP_OUT = [*RIG_OUT, (M['JointEstimate'], '/pam/estimate'),
+            (M['ValveCommand'], '/pam/valve_command'),
+            (M['ControllerState'], '/pam/controller_state')]
 
 
 GROUPS = {g.name: g for g in [
@@ -618,23 +685,23 @@ CASES = [
     Case('bag.chunk_flipped', 'bags', 'closed_mild_angle, 16 bytes flipped in a chunk '
          '(zstd fails)', 'info, play, evaluate, identify: exit 2 naming the file; recover: '
          'exit 0, then info reads it', damaged_bag('closed_mild_angle', flip_in_chunk),
-         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+         tools_answer({**dict.fromkeys(READERS, 2), 'recover': 0, 'info (recovered)': 0})),
     Case('bag.chunk_crc', 'bags', 'closed_mild_angle, 8 bytes flipped in a chunk so that zstd '
          'still decompresses it (only its CRC tells)', 'exit 2 naming the file; recover: exit '
          '0, then info reads it', damaged_bag('closed_mild_angle', flip_unnoticed),
-         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+         tools_answer({**dict.fromkeys(READERS, 2), 'recover': 0, 'info (recovered)': 0})),
     Case('bag.truncated', 'bags', 'closed_mild_angle cut at 60 % (mid-chunk, no summary)',
          'exit 2 naming the file; recover: exit 0, then info reads it',
          damaged_bag('closed_mild_angle', truncate),
-         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+         tools_answer({**dict.fromkeys(READERS, 2), 'recover': 0, 'info (recovered)': 0})),
     Case('bag.split_file_missing', 'bags', 'validation_mild_locked without its 2nd file',
          'exit 2 naming the missing file; recover: rebuilds the rest, exit 2 naming what is '
          'lost; then info reads it', damaged_bag('validation_mild_locked', remove_split_file),
-         tools_answer({**{r: 2 for r in READERS}, 'recover': 2, 'info (recovered)': 0})),
+         tools_answer({**dict.fromkeys(READERS, 2), 'recover': 2, 'info (recovered)': 0})),
     Case('bag.no_metadata', 'bags', 'closed_mild_angle without metadata.yaml', 'exit 2 naming '
          'the repair; recover: exit 0, then info reads it',
          damaged_bag('closed_mild_angle', remove_metadata),
-         tools_answer({**{r: 2 for r in READERS}, 'recover': 0, 'info (recovered)': 0})),
+         tools_answer({**dict.fromkeys(READERS, 2), 'recover': 0, 'info (recovered)': 0})),
 
     # --- malformed params files to every node and pam-bringup ------------------------------
     *[Case(f'params_file.{kind}', 'params_files', f'params file: {kind}',
@@ -760,7 +827,7 @@ def main(argv=None) -> int:
     parser.add_argument('--verbose', action='store_true',
                         help="print the end of every process's stderr of a failed case")
     args = parser.parse_args(argv)
-    global VERBOSE
+    global VERBOSE   # noqa: PLW0603 - set once, from --verbose, before any case runs
     VERBOSE = args.verbose
     cases = [c for c in CASES if not args.only or re.search(args.only, c.name)
              or re.search(args.only, c.group)]

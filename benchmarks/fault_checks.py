@@ -127,7 +127,7 @@ def accepted(ctx, facts):
     good = [r.ok and r.after == r.value for r in results]
     return Verdict(all(good), ', '.join(
         f'{r.name}={r.value!r} ' + ('set' if g else f'NOT set ({r.reason}) -> {r.after!r}')
-        for r, g in zip(results, good)))
+        for r, g in zip(results, good, strict=True)))
 
 
 def _is_nan(value) -> bool:

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pam_common.executables import find_executable
-from pam_common.testing import (DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env,
-                                wait_until)
+from pam_common.testing import DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env, wait_until
 
 STARTUP = 60.0        # s: a fresh node's first /diagnostics on a loaded 2-core machine
 DIAG_WAIT = 4.0       # s: a fresh /diagnostics status (nodes publish about 1 Hz)

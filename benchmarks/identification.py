@@ -70,7 +70,7 @@ def main():
             t0 = time.perf_counter()
             run([tool('pam-calibration-bags'), out / 'bags', '--mismatch', name, '--seed',
                  args.seed, '--validation', 130])
-            calibration = sorted((out / 'bags').glob('locked_*')) + [out / 'bags' / 'free']
+            calibration = [*sorted((out / 'bags').glob('locked_*')), out / 'bags' / 'free']
             run([tool('pam-identify'), *calibration, '-o', out / 'identified',
                  '--truth-mismatch', name])
             elapsed = time.perf_counter() - t0
@@ -80,9 +80,12 @@ def main():
             print(f'\n== {name}: parameters (relative error vs the plant; bags + identification '
                   f'{elapsed:.0f} s)')
             for label, read in IDENTIFIABLE.items():
-                before = max(abs(e / t - 1.0) for e, t in zip(read(nominal), read(truth)))
-                after = max(abs(e / t - 1.0) for e, t in zip(read(identified), read(truth)))
-                print(f'  {label:<18} nominal {100 * before:7.2f} %   identified {100 * after:6.2f} %')
+                before = max(abs(e / t - 1.0)
+                             for e, t in zip(read(nominal), read(truth), strict=True))
+                after = max(abs(e / t - 1.0)
+                            for e, t in zip(read(identified), read(truth), strict=True))
+                print(f'  {label:<18} nominal {100 * before:7.2f} %   '
+                      f'identified {100 * after:6.2f} %')
             print(f'== {name}: UKF on the validation bags (pam-evaluate)')
             for mode in ('free', 'locked'):
                 bag = out / 'bags' / f'validation_{mode}'

@@ -29,7 +29,8 @@ from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 
 def cpu_seconds(pid: int) -> float:
-    fields = open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()
+    with open(f'/proc/{pid}/stat') as stat:
+        fields = stat.read().rsplit(')', 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 

@@ -10,7 +10,6 @@ Prints angle and torque metrics of the UKF for each Q. Takes a few minutes.
 import itertools
 
 from accuracy_scenario import scenario_runs
-
 from pam_estimator.evaluation import measured_and_estimated, run_ukf
 from pam_estimator.pam_ukf import DEFAULT_TUNING, UkfTuning
 from pam_model.metrics import metrics

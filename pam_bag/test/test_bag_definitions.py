@@ -40,9 +40,8 @@ def test_the_bag_is_as_the_old_recordings(old_bag):
 
 
 def test_bag_play_refuses_it_and_publishes_nothing(node_process, probe, old_bag):
-    from test_bags_nodes import resumed_player  # the same test folder (prepend import mode)
-
     from pam_interfaces.msg import JointMeasurement, ValveCommand
+    from test_bags_nodes import resumed_player  # the same test folder (prepend import mode)
     remap = 'remap:=' + ','.join(f'/pam/{t}:=/old_bag/{t}'     # topics of this test only
                                  for t in ('pressures', 'joint_measured', 'valve_command'))
     measured = probe.subscribe(JointMeasurement, '/old_bag/joint_measured')

@@ -6,11 +6,11 @@ import shutil
 import subprocess
 
 import pytest
-from test_bags_lib import write_bag  # the same test folder (pytest's prepend import mode)
 
 from pam_bag.bags import make_typestore
 from pam_bag.testing import damage_chunk
 from pam_common.testing import executable
+from test_bags_lib import write_bag  # the same test folder (pytest's prepend import mode)
 
 BAD_INPUT = 2
 

@@ -199,9 +199,8 @@ def test_bag_info_prints_counts():
 # ------------------------------------------------------------- bag_play options on a small bag
 @pytest.fixture(scope='module')
 def small_bag(tmp_path_factory):
-    from test_bags_lib import write_bag  # the same test folder (pytest's prepend import mode)
-
     from pam_bag.bags import make_typestore
+    from test_bags_lib import write_bag  # the same test folder (pytest's prepend import mode)
     path = tmp_path_factory.mktemp('small') / 'b'
     write_bag(make_typestore(), path, n=N, period_ns=PERIOD)
     return path
@@ -292,9 +291,8 @@ def test_start_paused_plays_nothing_until_resumed(node_process, probe, small_bag
 @pytest.fixture(scope='module')
 def burst_bag(tmp_path_factory):
     """3000 Pressures messages 0.1 ms apart (0.3 s)."""
-    from test_bags_lib import write_bag
-
     from pam_bag.bags import make_typestore
+    from test_bags_lib import write_bag
     path = tmp_path_factory.mktemp('burst') / 'b'
     write_bag(make_typestore(), path, n=3000, period_ns=100_000)
     return path
@@ -319,10 +317,9 @@ def test_a_damaged_chunk_is_reported_after_playing_what_precedes_it(node_process
     """A complete file whose chunk 20 (of 60, one message each) has 8 bytes flipped where zstd
     still decompresses (only its CRC shows it) passes the checks at start; the player plays
     messages 0-19, then names the file and the chunk, exit 2 (bad input)."""
-    from test_bags_lib import write_bag
-
     from pam_bag.bags import make_typestore
     from pam_bag.testing import damage_chunk
+    from test_bags_lib import write_bag
     bag = tmp_path / 'full'
     write_bag(make_typestore(), bag, n=60, chunk_interval=0.0)
     damage_chunk(bag / 'full.mcap', 20)

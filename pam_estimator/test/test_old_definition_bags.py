@@ -1,8 +1,8 @@
 """pam-evaluate and pam-identify on a bag recorded before Pressures had its sample counter: one
-error line naming the topic, the type and both RIHS01 hashes, exit code 2 (docs/stopping.md, Exit codes),
-nothing written (they stopped with rosbags' "Could not deserialize" traceback, exit 1). A bag
-whose channel claims today's definition over messages of the old one: one line naming the first
-message that cannot be read, exit 2."""
+error line naming the topic, the type and both RIHS01 hashes, exit code 2 (docs/stopping.md, Exit
+codes), nothing written (they stopped with rosbags' "Could not deserialize" traceback, exit 1). A
+bag whose channel claims today's definition over messages of the old one: one line naming the
+first message that cannot be read, exit 2."""
 
 import subprocess
 
