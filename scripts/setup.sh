@@ -205,6 +205,33 @@ if [[ -d "$STAMPS" ]]; then
   done
 fi
 
+# A script that moved between two packages (issue 14: bag_play from pam_driver to pam_bag) is
+# deleted by the old owner's reinstall when that comes after the new owner's install: reinstall
+# every package one of whose console scripts is missing from the venv's bin.
+if ((did)); then
+  mapfile -t lost < <("$VPY" - "${py_pkgs[@]}" <<'PYEOF'
+import sys
+from importlib.metadata import PackageNotFoundError, distribution
+from pathlib import Path
+bin_dir = Path(sys.executable).parent
+for pkg in sys.argv[1:]:
+    try:
+        scripts = [e.name for e in distribution(pkg).entry_points if e.group == 'console_scripts']
+    except PackageNotFoundError:
+        continue
+    if any(not (bin_dir / name).exists() for name in scripts):
+        print(pkg)
+PYEOF
+  )
+  for pkg in "${lost[@]}"; do
+    say "reinstalling $pkg (a console script of it was removed by another package's reinstall)..."
+    clean_inplace "$pkg"
+    run_logged "$pkg-install" "$VPY" -m pip install --no-deps --no-build-isolation --no-index \
+      --force-reinstall "./$pkg" || { clean_inplace "$pkg"; exit 1; }
+    clean_inplace "$pkg"
+  done
+fi
+
 # pip's reinstall dropped numba's on-disk cache of the compiled kernels: compile them now, once,
 # rather than in the first node or test that runs.
 if ((did)); then
