@@ -42,6 +42,7 @@ PYTHON_KEYS = {
     'scipy': 'python3-scipy',
     'serial': 'python3-serial',
     'yaml': 'python3-yaml',
+    'yourdfpy': 'python3-yourdfpy-pip',
     'zstandard': 'python3-zstandard',
 }
 #: ROS packages (released for Jazzy) imported by their package name: the key is that name.

@@ -18,7 +18,7 @@ PACKAGES = sorted(p.parent for p in ROOT.glob('*/package.xml'))
 def test_every_package_folder_is_found():
     assert {p.name for p in PACKAGES} == {
         'pam_model', 'pam_interfaces', 'pam_common', 'pam_bag', 'pam_driver', 'pam_estimator',
-        'pam_controller', 'pam_bringup'}
+        'pam_controller', 'pam_bringup', 'pam_description'}
 
 
 @pytest.mark.parametrize('folder', PACKAGES, ids=lambda p: p.name)
