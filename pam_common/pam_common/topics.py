@@ -11,6 +11,9 @@ without rclpy use these too.
     joint_measured     pam_interfaces/JointMeasurement   sim_node, driver_node
     valve_command      pam_interfaces/ValveCommand       pi_node, profile_player
     estimate           pam_interfaces/JointEstimate      ukf_node
+    joint_states       sensor_msgs/JointState            sim_node, driver_node (the measured
+                                                         joint, for the standard tools)
+    estimate/joint_states  sensor_msgs/JointState        ukf_node (the estimate, likewise)
     controller_state   pam_interfaces/ControllerState    pi_node
     reference          pam_interfaces/Reference          reference_node
     ~/applied_command  pam_interfaces/ValveCommand       driver_node
@@ -26,6 +29,8 @@ PRESSURES = 'pressures'
 JOINT_MEASURED = 'joint_measured'
 VALVE_COMMAND = 'valve_command'
 ESTIMATE = 'estimate'
+JOINT_STATES = 'joint_states'
+ESTIMATE_JOINT_STATES = 'estimate/joint_states'
 CONTROLLER_STATE = 'controller_state'
 REFERENCE = 'reference'
 APPLIED_COMMAND = '~/applied_command'

@@ -304,6 +304,8 @@ def test_the_topic_names_and_profiles_stay_as_they_are():
             topics.APPLIED_COMMAND, topics.DIAGNOSTICS, topics.CLOCK) == (
         '/pam', 'pressures', 'joint_measured', 'valve_command', 'estimate', 'controller_state',
         'reference', '~/applied_command', '/diagnostics', '/clock')
+    assert (topics.JOINT_STATES, topics.ESTIMATE_JOINT_STATES) == (
+        'joint_states', 'estimate/joint_states')          # sensor_msgs/JointState (issue 15)
     assert topics.absolute(topics.PRESSURES) == '/pam/pressures'
     assert topics.absolute(topics.ESTIMATE, '/x/') == '/x/estimate'
     assert topics.absolute(topics.CLOCK, '/x') == '/clock'

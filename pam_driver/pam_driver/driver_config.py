@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
     U_MAX,
     U_MIN,
@@ -55,6 +56,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('reconnect_backoff', [0.1, 2.0], 'double[]', 's',
               'Reconnect delays [first, max]: doubled after each failed attempt.'),
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published headers.'),
+    *joint_state_params('joint_states', 'the encoder angle, its finite-difference velocity and '
+                        'the torque meter (effort empty without one)',
+                        "The board's sample rate is known at the handshake: above it, every "
+                        'sample is published (a warning).'),
     ParamSpec('inject_internal_error', 0.0, 'double', 's',
               'Fault injection for tests: raise an internal error in the serial thread this long '
               'after the first valve_command reached the valves, once (exercises the safe output '
@@ -67,6 +72,8 @@ SUMMARY = (
     '  publishes   pressures       pam_interfaces/Pressures         P1, P2 (Pa abs), per sample',
     '  publishes   joint_measured  pam_interfaces/JointMeasurement  encoder angle, torque meter '
     '(when fitted)',
+    '  publishes   joint_states    sensor_msgs/JointState           the joint for the standard '
+    'tools (encoder)',
     '  subscribes  valve_command   pam_interfaces/ValveCommand      u1, u2 (V)',
     '  publishes   ~/applied_command pam_interfaces/ValveCommand    what the valves get',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
@@ -101,6 +108,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> dict:
     if not 0.0 < b[0] <= b[1] <= 60.0:
         fail('reconnect_backoff', f'need 0 < first <= max <= 60 s, got {b}')
     values['reconnect_backoff'] = b
+    check_joint_states(values, None)      # the board's rate: checked at the handshake
     try:
         values['calibration'] = load(values['calibration_file'])
     except CalibrationError as exc:

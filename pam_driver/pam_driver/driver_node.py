@@ -9,7 +9,10 @@ Topics (same contract as sim_node; relative names under '/pam' by default): publ
 device's ticks, 1 for the first sample received, so a SAMPLE frame lost on the line or the stream
 down while reconnecting is a gap downstream: daq_protocol.TickCounter) and, when the board
 reports an encoder and a torque meter fitted, `joint_measured` (angle from the encoder, torque
-from the torque meter, angular velocity by finite difference of the angle); subscribes
+from the torque meter, angular velocity by finite difference of the angle) and, when it reports
+an encoder, `joint_states` (sensor_msgs/JointState for the standard tools: joint_name, the same
+angle and velocity, the torque as effort, empty without a torque meter; 1 sample in
+round(board rate / joint_states_rate)); subscribes
 `valve_command`; publishes `~/applied_command` (the voltages the valves actually get, on each
 change) and `/diagnostics`. Services `~/arm` and `~/estop` (std_srvs/Trigger).
 
@@ -43,10 +46,12 @@ import time
 from collections.abc import Callable
 
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
+from pam_common.joint_states import JointStates
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import LATEST_QOS, SAMPLE_QOS
 from pam_common.throttled_log import ThrottledLogs
@@ -55,6 +60,7 @@ from pam_common.topics import (
     APPLIED_COMMAND,
     DEFAULT_NAMESPACE,
     JOINT_MEASURED,
+    JOINT_STATES,
     PRESSURES,
     VALVE_COMMAND,
 )
@@ -122,6 +128,12 @@ class DriverNode(Node):
             self.create_publisher(Pressures, PRESSURES, SAMPLE_QOS), hold=True)
         self._pub_joint = self._guard.wrap(
             self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
+        # the joint as JointState (pam_common.joint_states); the board's rate comes at the
+        # handshake
+        rate = self.config['joint_states_rate']
+        self._joint_states = JointStates(
+            self._guard.wrap(self.create_publisher(JointState, JOINT_STATES, SAMPLE_QOS))
+            if rate else None, JointState(), self.config['joint_name'], self._frame_id, rate, None)
         self._pub_applied = self._guard.wrap(
             self.create_publisher(ValveCommand, APPLIED_COMMAND, LATEST_QOS),
             safe=dict(zip(('u1', 'u2'), self.config['safe_output'], strict=True)), whole=True)
@@ -330,10 +342,15 @@ class DriverNode(Node):
             # whatever the valves had before: start from the safe output
             self._apply(self._core.on_connected())
         self._prev_angle = None
+        if not self._joint_states.set_sample_rate(info.rate):
+            self.get_logger().warning(
+                f"joint_states_rate {self.config['joint_states_rate']:g} Hz is above the "
+                f"board's sample rate {info.rate} Hz: every sample is published")
         self.get_logger().info(
             f'connected to {self.config["port"]}: protocol {info.major}.{info.minor}, '
             f'{info.rate} Hz, encoder {"yes" if info.has_encoder else "no"}, torque meter '
-            f'{"yes" if info.has_torque else "no"}')
+            f'{"yes" if info.has_torque else "no"}'
+            + (f'; {self._joint_states.describe()}' if info.has_encoder else ''))
 
     def _disconnect(self) -> None:
         with self._lock:
@@ -401,17 +418,21 @@ class DriverNode(Node):
         msg.sample = self._ticks.update(s.tick)
         self._pub_pressures.publish(msg)
         info = self._device
-        if info is not None and info.has_encoder and info.has_torque:
+        if info is not None and info.has_encoder:
             angle = cal.angle(s.encoder)
             h = 1.0 / info.rate
-            joint = JointMeasurement()
-            joint.header = msg.header
-            joint.angle = angle
-            joint.angular_velocity = (0.0 if self._prev_angle is None
-                                      else (angle - self._prev_angle) / h)
-            joint.torque = cal.torque(s.adc_torque)
+            velocity = 0.0 if self._prev_angle is None else (angle - self._prev_angle) / h
             self._prev_angle = angle
-            self._pub_joint.publish(joint)
+            torque = None
+            if info.has_torque:
+                joint = JointMeasurement()
+                joint.header = msg.header
+                joint.angle = angle
+                joint.angular_velocity = velocity
+                joint.torque = cal.torque(s.adc_torque)
+                self._pub_joint.publish(joint)      # its guard holds the last finite values
+                angle, velocity, torque = joint.angle, joint.angular_velocity, joint.torque
+            self._joint_states.publish(stamp, msg.sample, angle, velocity, torque)
         self._stats.record(0.0)
         with self._lock:
             self._samples += 1

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
     U_MAX,
     U_MIN,
@@ -108,6 +109,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               range=TIMEOUT_RANGE),
     ParamSpec('frame_id', 'pam_joint', 'string', '',
               'frame_id of the published headers.'),
+    *joint_state_params('joint_states', 'the true joint, as joint_measured'),
 )
 
 PARAMETERS_BY_NAME = {spec.name: spec for spec in PARAMETERS}
@@ -125,6 +127,8 @@ SUMMARY = (
     '  publishes   joint_measured  pam_interfaces/JointMeasurement  true angle, velocity, '
     'torque',
     '  subscribes  valve_command   pam_interfaces/ValveCommand      u1, u2 (V), held',
+    '  publishes   joint_states    sensor_msgs/JointState           joint_measured for the '
+    'standard tools',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
     '  publishes   /clock          rosgraph_msgs/Clock              if publish_clock',
 )
@@ -181,6 +185,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
         fail('plant_parameters', "empty; use 'default', 'printed' or a YAML path")
     if not values['valve_map'].strip():
         fail('valve_map', "empty; use 'default' or a CSV path")
+    check_joint_states(values, values['rate'])
 
     from pam_model.mismatch import load_scenario
     from pam_model.model import PamModel

@@ -13,12 +13,16 @@ Topics (relative names resolve under the node namespace, '/pam' unless remapped 
                                                      angle (rad), angular velocity (rad/s) and
                                                      true torque (N m)
     valve_command   pam_interfaces/ValveCommand      subscribed: u1, u2 (V), held until the next
+    joint_states    sensor_msgs/JointState           joint_measured for the standard tools: one
+                                                     joint (joint_name), position rad, velocity
+                                                     rad/s, effort N m, the same stamps; every
+                                                     sample, or fewer (joint_states_rate)
     /diagnostics    diagnostic_msgs/DiagnosticArray  published about once a second (absolute name)
     /clock          rosgraph_msgs/Clock              published with every sample if publish_clock
 
-QoS: pressures, joint_measured and valve_command are RELIABLE, KEEP_LAST depth 100, VOLATILE (a
-1 kHz loop across processes loses none with depth 100; a subscriber that joins late gets no
-history). /diagnostics is reliable, keep last 10; /clock reliable, keep last 10 (compatible
+QoS: pressures, joint_measured, joint_states and valve_command are RELIABLE, KEEP_LAST depth 100,
+VOLATILE (a 1 kHz loop across processes loses none with depth 100; a subscriber that joins late
+gets no history). /diagnostics is reliable, keep last 10; /clock reliable, keep last 10 (compatible
 with rclpy's best-effort /clock subscription).
 
 Timing 'realtime': a dedicated thread (not an rclpy timer) sleeps to absolute deadlines
@@ -77,15 +81,24 @@ import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
+from pam_common.joint_states import JointStates
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
-from pam_common.topics import CLOCK, DEFAULT_NAMESPACE, JOINT_MEASURED, PRESSURES, VALVE_COMMAND
+from pam_common.topics import (
+    CLOCK,
+    DEFAULT_NAMESPACE,
+    JOINT_MEASURED,
+    JOINT_STATES,
+    PRESSURES,
+    VALVE_COMMAND,
+)
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
@@ -151,6 +164,12 @@ class SimNode(Node):
             self.create_publisher(Pressures, PRESSURES, SAMPLE_QOS), hold=True)
         self._pub_joint = self._guard.wrap(
             self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
+        # joint_measured as JointState, from the message after its guard (pam_common.joint_states)
+        rate = values['joint_states_rate']
+        self._joint_states = JointStates(
+            self._guard.wrap(self.create_publisher(JointState, JOINT_STATES, SAMPLE_QOS))
+            if rate else None, JointState(), values['joint_name'], self._frame_id, rate,
+            self.config.rate)
         self._pub_clock = (self.create_publisher(Clock, CLOCK, CLOCK_QOS)
                            if values['publish_clock'] else None)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
@@ -163,7 +182,9 @@ class SimNode(Node):
             self.get_logger().info(line)
         self.get_logger().info(
             f'topics: publishing {self._pub_pressures.topic_name}, '
-            f'{self._pub_joint.topic_name}, /diagnostics'
+            f'{self._pub_joint.topic_name}, '
+            + (f'{self._joint_states.describe()}, ' if rate else '')
+            + '/diagnostics'
             + (', /clock' if self._pub_clock else '')
             + f'; subscribing {self._sub_command.topic_name}')
 
@@ -230,6 +251,8 @@ class SimNode(Node):
             self._pub_clock.publish(clock)
         self._pub_pressures.publish(pressures)
         self._pub_joint.publish(joint)
+        self._joint_states.publish(joint.header.stamp, pressures.sample, joint.angle,
+                                   joint.angular_velocity, joint.torque)
         self._last_publish = time.monotonic()
         with self._lock:
             self._samples_published += 1

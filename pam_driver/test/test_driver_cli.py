@@ -46,3 +46,17 @@ def test_emulator_rejects_an_initial_command_out_of_range():
     out = _run('pam-emulator', '--initial-command', '5.5', '10.5')
     assert out.returncode == 2 and '--initial-command must be within [0, 10] V' in out.stderr, \
         out.stderr
+
+
+def test_a_bad_joint_states_rate_is_refused():
+    """Its range is checked at start-up (the board's rate only at the handshake: above it,
+    every sample); one line, exit code 2; --help shows it with its unit and range."""
+    for value, words in (('20000.0', 'out of range [0.0, 10000.0]'), ('-5.0', 'out of range')):
+        out = _run('driver_node', '--ros-args', '-p', f'joint_states_rate:={value}')
+        lines = out.stderr.strip().splitlines()
+        assert out.returncode == 2, out.stderr
+        assert len(lines) == 1 and "parameter 'joint_states_rate'" in lines[0], out.stderr
+        assert words in lines[0], out.stderr
+    out = _run('driver_node', '--help')
+    assert '  joint_states_rate (double, Hz) = 1000.0  [0.0 .. 10000.0]' in out.stdout
+    assert "  joint_name (string) = 'seesaw_joint'" in out.stdout

@@ -11,6 +11,7 @@ import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from pam_driver import calibration
@@ -34,6 +35,7 @@ class Rig:
         self.emulator.wait_for(lambda: os.path.islink(link), STARTUP, 'the emulator pty link')
         self.pressures = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
         self.joint = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
+        self.joint_states = probe.subscribe(JointState, '/pam/joint_states', depth=1000)
         self.applied = probe.subscribe(ValveCommand, '/pam/driver_node/applied_command')
         self.diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
         self.commands = probe.publisher(ValveCommand, '/pam/valve_command')
@@ -309,6 +311,48 @@ def test_board_without_encoder_and_torque_meter(rig):
     assert values['encoder fitted'] == 'false' and values['torque meter fitted'] == 'false'
     assert values['device refused'] == 'none' and values['connected'] == 'true', values
     assert len(r.joint) == 0, 'joint_measured without an encoder and a torque meter'
+    assert len(r.joint_states) == 0, 'joint_states without an encoder'
+
+
+def _by_stamp(helpers, collector) -> dict:
+    return {helpers.stamp_ns(m.header.stamp): m for m in collector.messages()}
+
+
+def test_joint_states_mirror_joint_measured(rig, helpers):
+    """Encoder and torque meter: /pam/joint_states carries joint_measured's stamps and values."""
+    r = rig(emulator_args=('--x0', '0.1', '0.0', '450000.0', '380000.0'))
+    r.driver.wait_for(lambda: len(r.joint) > 200 and len(r.joint_states) > 200, 10.0,
+                      'joint_measured and joint_states')
+    measured, states = _by_stamp(helpers, r.joint), _by_stamp(helpers, r.joint_states)
+    common = set(measured) & set(states)
+    assert len(common) >= 0.9 * min(len(measured), len(states)), (len(measured), len(states))
+    for stamp in common:
+        joint, state = measured[stamp], states[stamp]
+        assert (list(state.position), list(state.velocity), list(state.effort)) == (
+            [joint.angle], [joint.angular_velocity], [joint.torque])
+        assert list(state.name) == ['seesaw_joint'] and state.header.frame_id == 'pam_joint'
+    assert any(m.angle != 0.0 for m in measured.values())
+
+
+def test_joint_states_from_the_encoder_alone_and_decimated(rig, helpers):
+    """An encoder without a torque meter: no joint_measured, but joint_states with an empty
+    effort; joint_states_rate 100 Hz at the board's 1 kHz: the samples 1, 11, 21, ... of the
+    device's counter (a Pressures sample has the same stamp)."""
+    cal = calibration.load()
+    r = rig(emulator_args=('--no-torque', '--freeze', '--locked', '--noise-std', '0', '--x0',
+                           '0.1', '0.0', '450000.0', '380000.0'),
+            driver_params=('joint_states_rate:=100.0', 'stuck_time:=0.0'))
+    r.driver.wait_for(lambda: len(r.joint_states) > 20, 10.0, 'joint_states')
+    pressures = _by_stamp(helpers, r.pressures)
+    states = r.joint_states.messages()
+    for state in states:
+        assert len(state.effort) == 0 and len(state.position) == len(state.velocity) == 1
+        assert abs(state.position[0] - 0.1) <= cal.angle_resolution
+    counters = [pressures[helpers.stamp_ns(s.header.stamp)].sample for s in states
+                if helpers.stamp_ns(s.header.stamp) in pressures]
+    assert len(counters) >= 0.9 * len(states)
+    assert all((c - 1) % 10 == 0 for c in counters), counters[:20]
+    assert len(r.joint) == 0, 'joint_measured without a torque meter'
 
 
 def test_board_vents_reach_the_diagnostics(rig):

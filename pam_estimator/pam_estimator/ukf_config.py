@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
     ConfigError,
     ParamSpec,
@@ -65,6 +66,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               range=(0.001, 3600.0)),
     WARN_RATIO_PARAM,
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published estimates.'),
+    *joint_state_params('estimate/joint_states', 'the estimate: angle, angular velocity, torque'),
 )
 
 
@@ -75,6 +77,8 @@ SUMMARY = [
     '  subscribes  pressures       pam_interfaces/Pressures        P1, P2 (Pa abs), one step each',
     '  subscribes  valve_command   pam_interfaces/ValveCommand     u1, u2 (V), held as u(k-1)',
     '  publishes   estimate        pam_interfaces/JointEstimate    per sample, with its stamp',
+    '  publishes   estimate/joint_states  sensor_msgs/JointState   the estimate for the standard',
+    '                                                              tools (joint_states_rate)',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray about 1 Hz',
     'Service ~/reset (std_srvs/Trigger): restart from initial_state and the initial covariance.',
 ]
@@ -131,6 +135,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
         fail('valve_map', str(exc))
     model = PamModel(params=params, valve_map=valve_map, friction=values['friction_law'],
                      force=values['force_model'], locked=values['joint_mode'] == 'locked')
+    check_joint_states(values, 1.0 / model.h)    # one filter step per sample of h
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(values['initial_state']),
                  nis_gate=values['nis_gate'],
                  y_range=(values['pressure_min'], values['pressure_max']))

@@ -8,6 +8,11 @@ remapped with `--ros-args -r __ns:=/other`):
     estimate       pam_interfaces/JointEstimate    published for every sample, with the sample's
                                                    stamp and counter (sample), covariance and
                                                    filter health
+    estimate/joint_states  sensor_msgs/JointState  the estimate for the standard tools: one joint
+                                                   (joint_name), position = angle (rad), velocity
+                                                   = angular velocity (rad/s), effort = torque
+                                                   (N m), the estimate's stamps; every sample, or
+                                                   fewer (joint_states_rate)
     /diagnostics   diagnostic_msgs/DiagnosticArray about 1 Hz: input rate, staleness, NIS,
                                                    covariance trace, rejected samples, step time,
                                                    samples lost (gaps in Pressures.sample; WARN
@@ -27,16 +32,24 @@ import sys
 
 import numpy as np
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
+from pam_common.joint_states import JointStates
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
-from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, PRESSURES, VALVE_COMMAND
+from pam_common.topics import (
+    DEFAULT_NAMESPACE,
+    ESTIMATE,
+    ESTIMATE_JOINT_STATES,
+    PRESSURES,
+    VALVE_COMMAND,
+)
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 from .estimator_core import EstimatorCore
@@ -67,6 +80,12 @@ class UkfNode(Node):
         self.guard = FiniteGuard(self.get_logger())      # non-finite -> the last finite value
         self.estimate_pub = self.guard.wrap(
             self.create_publisher(JointEstimate, ESTIMATE, SAMPLE_QOS), hold=True)
+        # the estimate as JointState, from the message after its guard (pam_common.joint_states)
+        rate = config.values['joint_states_rate']
+        self.joint_states = JointStates(
+            self.guard.wrap(self.create_publisher(JointState, ESTIMATE_JOINT_STATES, SAMPLE_QOS))
+            if rate else None, JointState(), config.values['joint_name'], self.frame_id, rate,
+            1.0 / config.ukf.model.h)          # one filter step per sample
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
         self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -77,7 +96,8 @@ class UkfNode(Node):
         self.diagnostics.add_check(self.logs.report)
         self.get_logger().info(
             f'estimating: {self.resolve_topic_name(PRESSURES)} + '
-            f'{self.resolve_topic_name(VALVE_COMMAND)} -> {self.resolve_topic_name(ESTIMATE)}')
+            f'{self.resolve_topic_name(VALVE_COMMAND)} -> {self.resolve_topic_name(ESTIMATE)}'
+            + (f', {self.joint_states.describe()}' if rate else ''))
 
     def _warm_up(self) -> None:
         """Run the compiled kernel once (loads numba's cache or compiles) on a throw-away copy."""
@@ -117,6 +137,8 @@ class UkfNode(Node):
         est.update_skipped = bool(out.update_skipped)
         est.sample = msg.sample
         self.estimate_pub.publish(est)
+        self.joint_states.publish(est.header.stamp, est.sample, est.angle,
+                                  est.angular_velocity, est.torque)
 
     def _on_reset(self, request, response):
         self.core.reset()
