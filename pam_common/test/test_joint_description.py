@@ -65,9 +65,9 @@ def test_a_file_that_is_no_urdf_is_a_clear_error(tmp_path):
         default_joint_name(urdf(tmp_path, ('hinge', 'revolute'), root='sdf'))
     broken = tmp_path / 'broken.urdf'
     broken.write_text('<robot name="r"><joint')
-    with pytest.raises(JointDescriptionError, match='broken.urdf: cannot read the URDF'):
+    with pytest.raises(JointDescriptionError, match=r'broken\.urdf: cannot read the URDF'):
         default_joint_name(broken)
-    with pytest.raises(JointDescriptionError, match='missing.urdf: cannot read the URDF'):
+    with pytest.raises(JointDescriptionError, match=r'missing\.urdf: cannot read the URDF'):
         default_joint_name(tmp_path / 'missing.urdf')
 
 

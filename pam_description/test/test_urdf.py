@@ -82,7 +82,8 @@ def test_the_seesaw_has_mass_M_and_inertia_J_about_the_joint_axis(urdf):
 
 
 def test_the_joint_damping_is_c_s(urdf):
-    assert close(urdf.joint_map[JOINT].dynamics.damping, P.c_s)
+    # yourdfpy 0.0.60 keeps the <dynamics> attributes as strings
+    assert close(float(urdf.joint_map[JOINT].dynamics.damping), P.c_s)
 
 
 def test_the_shaft_has_radius_r_p_along_the_joint_axis(urdf):
@@ -94,7 +95,8 @@ def test_the_shaft_has_radius_r_p_along_the_joint_axis(urdf):
 
 
 def test_the_seesaw_bar_spans_2r(urdf):
-    bars = [v.geometry.box.size for v in urdf.link_map['seesaw'].visuals if v.geometry.box]
+    bars = [v.geometry.box.size for v in urdf.link_map['seesaw'].visuals
+             if v.geometry.box is not None]
     assert len(bars) == 1 and close(bars[0][1], 2.0 * P.r)
 
 
