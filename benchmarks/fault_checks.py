@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from fault_inputs import unanswered
+from pam_common.diagnostics import is_status_of
 from pam_common.stamps import stamp_ns
 from pam_common.testing import wait_until
 
@@ -152,7 +153,7 @@ def status_seen(node: str, level: int, text: str):
     """A status of `node` at `level` or worse whose message holds `text` came during the case."""
     def check(ctx, facts):
         seen = [s for t, a in ctx.stack.topics['/diagnostics'].items() if t >= ctx.t0
-                for s in a.status if s.name.startswith(node) and s.level[0] >= level
+                for s in a.status if is_status_of(s.name, node) and s.level[0] >= level
                 and text in s.message]
         return Verdict(bool(seen), f"{len(seen)} statuses with '{text}'" if seen else
                        f"no status with '{text}'")

@@ -22,6 +22,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from pam_common.diagnostics import is_status_of
 from pam_common.executables import find_executable
 from pam_common.testing import DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env, wait_until
 
@@ -293,15 +294,16 @@ class Stack:
             self.procs[name].close()
 
     # --- /diagnostics ----------------------------------------------------------------------
-    def status(self, name_prefix: str, after: float = 0.0):
-        """The latest DiagnosticStatus whose name starts with name_prefix received after the
-        monotonic time `after`, or None."""
+    def status(self, node: str, after: float = 0.0):
+        """The latest DiagnosticStatus of `node` (a bare node name or a fully qualified one,
+        pam_common.diagnostics.is_status_of) received after the monotonic time `after`, or
+        None."""
         found = None
         for t, array in self.topics['/diagnostics'].items():
             if t < after:
                 continue
             for s in array.status:
-                if s.name.startswith(name_prefix):
+                if is_status_of(s.name, node):
                     found = s
         return found
 

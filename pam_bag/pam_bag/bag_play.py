@@ -35,6 +35,7 @@ import time
 
 import numpy as np
 from rclpy.duration import Duration
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -42,7 +43,8 @@ from rclpy.task import Future
 from pam_bag.bag_record import message_class, split_list
 from pam_bag.bags import EXIT_BAD_INPUT, BagError, open_bag
 from pam_bag.read_ahead import END, ReadAhead
-from pam_common.node_params import ConfigError, ParamSpec, usage_text
+from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import CLOCK_QOS
 from pam_common.stamps import ns_pair
@@ -80,6 +82,7 @@ PARAMETERS = (
               'At the end, wait at most this long for reliable subscribers to acknowledge every '
               'message (as `ros2 bag play --wait-for-all-acked`); 0: exit at once.',
               range=(0.0, 60.0)),
+    HARDWARE_ID_PARAM,
 )
 
 SUMMARY = [
@@ -146,6 +149,7 @@ class BagPlayer(Node):
         if not values['start_paused']:
             self._running.set()
         self._quit = threading.Event()
+        DiagnosticsPublisher(self, 'bag player', values['hardware_id'], self._report)
         self._thread = threading.Thread(target=self._play, name='bag_play', daemon=True)
         self._thread.start()
         offset = values['start_offset']
@@ -154,6 +158,28 @@ class BagPlayer(Node):
             f'of {self.bag.path}' + (f' from {offset:g} s in' if offset else '') +
             f' at rate {values["rate"]:g}' +
             (' (paused: call ~/resume)' if values['start_paused'] else ''))
+
+    def _report(self):
+        """/diagnostics: messages played of the bag's, paused, sent before a subscriber
+        matched; ERROR after a damaged chunk, WARN while messages were lost that way."""
+        total = self.bag.message_count
+        lost = sum(self.sent_unmatched)
+        paused = not self._running.is_set()
+        values = {'bag': str(self.bag.path), 'messages played': self.published,
+                  'messages in the bag': total, 'paused': paused, 'rate': self.values['rate'],
+                  'loop': self.values['loop'],
+                  'sent before a subscriber matched': lost, 'read-ahead waits': self.read_waits}
+        if self.exit_code:
+            return ERROR, 'stopped at a damaged chunk', values
+        if self.finished.done():
+            message = f'played {self.published} messages'
+        elif paused:
+            message = f'paused after {self.published} of {total} messages'
+        else:
+            message = f'playing: {self.published} of {total} messages'
+        if lost:
+            return WARN, f'{message}; {lost} sent before a subscriber matched', values
+        return OK, message, values
 
     @staticmethod
     def _qos(offered) -> QoSProfile:
@@ -181,18 +207,28 @@ class BagPlayer(Node):
         response.success = self._running.is_set()
         response.message = 'paused' if response.success else 'already paused'
         self._running.clear()
+        self.get_logger().debug(f'~/pause: {response.message}')
         return response
 
     def _wait_running(self, bag_ns: int) -> int:
         """Block while paused, publishing /clock at the frozen bag time `bag_ns`; returns the
         paused time in ns."""
         start = time.monotonic_ns()
+        if self._running.is_set():
+            return 0
+        debug = self.get_logger().is_enabled_for(LoggingSeverity.DEBUG)
+        if debug:
+            self.get_logger().debug(f'paused at bag time {(bag_ns - self.bag.first_ns) * 1e-9:.3f}'
+                                    f' s ({self.published} messages published)')
         period = 1.0 / self.values['clock'] if self.clock_pub is not None else 0.1
         while not self._running.is_set() and not self._quit.is_set():
             if self.clock_pub is not None:
                 self._publish_clock(bag_ns)
             self._running.wait(period)
-        return time.monotonic_ns() - start
+        paused = time.monotonic_ns() - start
+        if debug and not self._quit.is_set():
+            self.get_logger().debug(f'playing again after {paused * 1e-9:.3f} s paused')
+        return paused
 
     def _publish_clock(self, bag_ns: int) -> None:
         msg = self._clock_msg()
@@ -290,9 +326,14 @@ class BagPlayer(Node):
         pubs, lateness, matched = self.publishers_by_index, self.lateness_ns, self.matched
         first = self.bag.first_ns
         item = self._next(source)
+        passes = 0
         while item is not END:
             self._wait_running(first)
             t0 = time.monotonic_ns()
+            passes += 1
+            if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+                self.get_logger().debug(f'pass {passes} started: {self.published} messages '
+                                        f'published before it, rate {rate:g}')
             next_clock = t0
             while item is not None and item is not END:       # one pass over the bag
                 t_msg, topic, data = item
@@ -331,23 +372,21 @@ class BagPlayer(Node):
         self._running.set()
         self._thread.join(timeout=5.0)
         self._wait_for_all_acked()
+        logger = self.get_logger()
         late = np.sort(self.lateness_ns[:min(self.published, LATENESS_KEPT)])
+        lateness = ''
         if len(late):
             p50, p99 = late[len(late) // 2], late[min(len(late) - 1, int(len(late) * 0.99))]
-            print(f'[{NODE_NAME}] published {self.published} messages; send lateness p50 '
-                  f'{p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us', flush=True)
-        else:
-            print(f'[{NODE_NAME}] published {self.published} messages', flush=True)
+            lateness = f'; send lateness p50 {p50 / 1e3:.0f} us, p99 {p99 / 1e3:.0f} us'
+        logger.info(f'published {self.published} messages{lateness}')
         lost = [f'{pub.topic_name} {n}' for pub, n in zip(self.publishers_by_index,
                                                            self.sent_unmatched, strict=True)
                 if n]
         if lost:
-            print(f'[{NODE_NAME}] sent before any subscriber matched: {", ".join(lost)}',
-                  flush=True)
+            logger.info(f'sent before any subscriber matched: {", ".join(lost)}')
         if self.read_waits:
-            print(f'[{NODE_NAME}] warning: playback waited {self.read_waits} times 0.1 s for '
-                  'the bag to be read (a slow disk? a larger read_ahead_size may help)',
-                  file=sys.stderr, flush=True)
+            logger.warning(f'playback waited {self.read_waits} times 0.1 s for the bag to be '
+                           'read (a slow disk? a larger read_ahead_size may help)')
         return self.exit_code
 
 

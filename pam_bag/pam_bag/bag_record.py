@@ -9,7 +9,7 @@ writer thread writes them, so a slow disk does not delay the callbacks.
 
 Ctrl-C / SIGTERM (or `duration` elapsed) closes the bag cleanly. An existing output directory is
 refused. A write error stops the recording: the bag is truncated to its last complete chunk and
-closed readable, the error is printed, and the exit code is 1. On a crash (SIGKILL, power loss)
+closed readable, the error is logged, and the exit code is 1. On a crash (SIGKILL, power loss)
 the .mcap holds every chunk written so far (at most `chunk_interval` of data is lost) but has no
 summary and there is no metadata.yaml.
 """
@@ -22,12 +22,14 @@ import sys
 import threading
 import time
 
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from pam_bag.bags import BagError, BagWriteError, BagWriter, check_split, known_type, qos_from_ints
-from pam_common.node_params import ConfigError, ParamSpec, usage_text
+from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.stamps import ns_pair
 
@@ -57,6 +59,7 @@ PARAMETERS = (
               range=(0.05, 10.0)),
     ParamSpec('duration', 0.0, 'double', 's', 'Stop after this long; 0: until Ctrl-C/SIGTERM.',
               range=(0.0, 1e7)),
+    HARDWARE_ID_PARAM,
 )
 
 SUMMARY = [
@@ -119,6 +122,7 @@ class BagRecorder(Node):
         self.create_timer(values['discovery_period'], self._discover)
         if values['duration'] > 0.0:
             self._stop_timer = self.create_timer(values['duration'], self._on_duration)
+        DiagnosticsPublisher(self, 'bag recorder', values['hardware_id'], self._report)
         what = ', '.join(self.explicit) if self.explicit else (
             'everything under ' + ', '.join(self.prefixes))
         self.get_logger().info(f'recording {what} into {self.bag.path}')
@@ -181,9 +185,27 @@ class BagRecorder(Node):
         if not self.finished.done():
             self.finished.set_result(0)
 
+    def _report(self):
+        """/diagnostics: the topics, the messages written and queued, the file being written
+        and the split files closed; ERROR after a write error, WARN while no topic is found."""
+        counts = self.bag.counts()
+        error = getattr(self, 'write_error', None)
+        values = {'bag': str(self.bag.path), 'file': self.bag.mcap_path.name,
+                  'split files closed': len(self.bag.files),
+                  'topics recorded': len(self.subscriptions_by_topic),
+                  'topics skipped': len(self.skipped),
+                  'messages written': sum(counts.values()), 'messages queued': len(self.queue)}
+        if error is not None:
+            return ERROR, f'recording stopped: {error}', values
+        if not self.subscriptions_by_topic:
+            return WARN, 'no topic to record found yet', values
+        return OK, (f"recording {values['topics recorded']} topics: "
+                    f"{values['messages written']} messages written"), values
+
     # ---------------------------------------------------------------- writing
     def _write_loop(self) -> None:
         queue, bag = self.queue, self.bag
+        closed = 0       # split files closed so far (their DEBUG lines logged)
         while True:
             try:
                 while queue:
@@ -194,9 +216,22 @@ class BagRecorder(Node):
                 if not self.finished.done():
                     self.finished.set_result(1)
                 return
+            if len(bag.files) != closed:
+                closed = self._log_files_closed(closed)
             if self._stop.is_set() and not queue:
                 return
             time.sleep(0.005)
+
+    def _log_files_closed(self, logged: int) -> int:
+        """A DEBUG line for every split file closed since the first `logged`; their count."""
+        files = list(self.bag.files)
+        logger = self.get_logger()
+        if logger.is_enabled_for(LoggingSeverity.DEBUG):
+            for f in files[logged:]:
+                logger.debug(f'split file {f.name} closed: {f.count} messages over '
+                             f'{max(0, f.end_ns - f.start_ns) * 1e-9:.3f} s; next file '
+                             f'{self.bag.mcap_path.name}')
+        return len(files)
 
     def finish(self) -> int:
         """Stop the subscriptions, write what is queued, close the bag; the exit code."""
@@ -210,16 +245,17 @@ class BagRecorder(Node):
             self.bag.close()
         except BagError as exc:
             error = error or exc
+        logger = self.get_logger()
         if error is not None:
-            print(f'[{NODE_NAME}] error: {error}; recording stopped, the bag holds what was '
-                  f'written before the error', file=sys.stderr, flush=True)
+            logger.error(f'{error}; recording stopped, the bag holds what was written before '
+                         'the error')
             code = 1
         counts = self.bag.counts()
         files = len(self.bag.files)
-        print(f'[{NODE_NAME}] wrote {sum(counts.values())} messages on {len(counts)} topics '
-              f'to {self.bag.path}' + (f' ({files} files)' if files > 1 else ''), flush=True)
+        logger.info(f'wrote {sum(counts.values())} messages on {len(counts)} topics to '
+                    f'{self.bag.path}' + (f' ({files} files)' if files > 1 else ''))
         for topic, n in sorted(counts.items()):
-            print(f'  {topic}: {n}', flush=True)
+            logger.info(f'  {topic}: {n}')
         return code
 
 

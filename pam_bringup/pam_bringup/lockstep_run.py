@@ -23,7 +23,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.task import Future
 
-from pam_common.diagnostics import status_values
+from pam_common.diagnostics import is_status_of, status_values
 from pam_common.executors import make_executor
 from pam_common.finite_guard import FiniteGuard
 from pam_common.qos import SAMPLE_QOS
@@ -103,7 +103,7 @@ class _ReferenceNode:
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
             for name in self._names:
-                if status.name.startswith(name):
+                if is_status_of(status.name, name):
                     self.statuses[name] = status
 
     def close(self) -> None:

@@ -17,7 +17,8 @@ import numpy as np
 from rclpy.node import Node
 from rclpy.task import Future
 
-from pam_common.node_params import ParamSpec, usage_text
+from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
+from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.stamps import stamp_ns
@@ -33,6 +34,7 @@ PARAMETERS = (
     ParamSpec('startup_timeout', 120.0, 'double', 's',
               'Give up if no reference and measurement arrive within this time.',
               range=(1.0, 3600.0)),
+    HARDWARE_ID_PARAM,
 )
 SUMMARY = ['Closed-loop tracking report (pam_controller): records reference, joint_measured,',
            'estimate and valve_command, then prints per-step metrics and writes a PNG.',
@@ -55,6 +57,7 @@ class TrackingReport(Node):
         self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
         self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
+        DiagnosticsPublisher(self, 'tracking report', self.values['hardware_id'], self._report)
         self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
                                'first reference')
 
@@ -82,6 +85,19 @@ class TrackingReport(Node):
 
     def _on_command(self, msg: ValveCommand):
         self.commands[stamp_ns(msg.header.stamp)] = (msg.u1, msg.u2)
+
+    def _report(self):
+        """/diagnostics: the seconds recorded of `duration`, the samples of each topic; WARN
+        while no reference and measurement arrived."""
+        recorded = ((max(self.truth) - self.first_ns) * 1e-9 if self.truth else 0.0)
+        values = {'recorded (s)': recorded, 'duration (s)': self.values['duration'],
+                  'references': len(self.references), 'measurements': len(self.truth),
+                  'estimates': len(self.estimates), 'valve commands': len(self.commands)}
+        if self.first_ns is None:
+            return WARN, 'waiting for a reference and a measurement', values
+        if self.finished.done():
+            return OK, 'recording done', values
+        return OK, f"recording: {recorded:.1f} of {self.values['duration']:g} s", values
 
     def series(self):
         """t (s), mode, reference, measured, estimate (nan where missing), commands (N, 2)."""

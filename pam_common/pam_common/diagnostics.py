@@ -5,13 +5,18 @@
     def report():
         return OK, 'running', {'samples published': 1234, 'achieved rate (Hz)': 999.8}
 
-    DiagnosticsPublisher(node, name='estimator_node: UKF', hardware_id='pam-ukf', callback=report)
+    PARAMETERS = (..., HARDWARE_ID_PARAM)          # pam_common.node_params: in every node's table
+    DiagnosticsPublisher(node, 'UKF estimator', values['hardware_id'], report)
 
 publishes on the absolute topic /diagnostics (diagnostic_msgs/DiagnosticArray, reliable, keep
 last 10, like diagnostic_updater) every `period` seconds one DiagnosticStatus built from what the
-callback returns: (level, message, values). level is OK/WARN/ERROR/STALE (the byte constants of
-DiagnosticStatus) or their names; values is a mapping of key -> value, formatted by format_value.
-A callback that raises yields an ERROR status naming the exception instead of killing the node.
+callback returns: (level, message, values). Its name is the node's fully qualified name and the
+title, '/pam/ukf_node: UKF estimator', so two stacks in two namespaces on one domain are told
+apart; its hardware_id is the node's hardware_id parameter (the row
+pam_common.node_params.HARDWARE_ID_PARAM), by default '' which stands for the node's namespace
+('/pam'). level is OK/WARN/ERROR/STALE (the byte constants of DiagnosticStatus) or their
+names; values is a mapping of key -> value, formatted by format_value. A callback that raises
+yields an ERROR status naming the exception instead of killing the node.
 
 The module-level helpers (format_value, level_from, make_status) need no running ROS.
 """
@@ -36,6 +41,24 @@ _LEVELS_BY_NAME['WARNING'] = WARN
 
 DIAGNOSTICS_TOPIC = DIAGNOSTICS
 NOT_AVAILABLE = 'n/a'     # the text of a non-finite value (format_value)
+
+
+def status_name(node_name: str, title: str) -> str:
+    """The name of a node's status: '/pam/sim_node: simulated rig' of ('/pam/sim_node',
+    'simulated rig'); node_name is the fully qualified name."""
+    return f'{node_name}: {title}'
+
+
+def status_node(name: str) -> str:
+    """The node of a status name: '/pam/sim_node' of '/pam/sim_node: simulated rig'."""
+    return name.split(': ', 1)[0]
+
+
+def is_status_of(name: str, node: str) -> bool:
+    """Whether the status called `name` is the node's: `node` is a fully qualified name
+    ('/pam/sim_node': that node only) or a bare node name ('sim_node': in any namespace)."""
+    fqn = status_node(name)
+    return fqn == node if node.startswith('/') else fqn.rsplit('/', 1)[-1] == node
 
 
 def level_from(level) -> bytes:
@@ -107,18 +130,19 @@ ReportCallback = Callable[[], tuple]
 class DiagnosticsPublisher:
     """Publishes one status on /diagnostics every `period` s from `callback()`.
 
-    callback() returns (level, message, values). The timer uses the node's clock and executor;
-    call publish_now() to send a status outside the period (e.g. at shutdown). add_check() adds
-    a check shared by nodes (e.g. FiniteGuard.report) to every status.
+    The status is named status_name(node's fully qualified name, title); hardware_id '' is the
+    node's namespace. callback() returns (level, message, values). The timer uses the node's
+    clock and executor; call publish_now() to send a status outside the period (e.g. at
+    shutdown). add_check() adds a check shared by nodes (e.g. FiniteGuard.report) to every status.
     """
 
-    def __init__(self, node, name: str, hardware_id: str, callback: ReportCallback,
+    def __init__(self, node, title: str, hardware_id: str, callback: ReportCallback,
                  period: float = 1.0, topic: str = DIAGNOSTICS_TOPIC, qos_depth: int = 10):
         if not (math.isfinite(period) and period > 0.0):
             raise ValueError(f'diagnostics period must be > 0 s, got {period!r}')
         self._node = node
-        self.name = name
-        self.hardware_id = hardware_id
+        self.name = status_name(node.get_fully_qualified_name(), title)
+        self.hardware_id = hardware_id or node.get_namespace()
         self._callback = callback
         self._checks: list[ReportCallback] = []
         self.period = period

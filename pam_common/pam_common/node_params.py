@@ -44,6 +44,14 @@ class ParamSpec:
         return repr(self.default)
 
 
+#: The row every node's parameter table holds: the hardware_id of its /diagnostics status
+#: (pam_common.diagnostics.DiagnosticsPublisher; here, without ROS, for the ROS-free tables).
+HARDWARE_ID_PARAM = ParamSpec(
+    'hardware_id', '', 'string', '',
+    "hardware_id of the node's /diagnostics status; '' (the default): the node's namespace, "
+    'e.g. /pam, so the nodes of one stack share it and two stacks differ.')
+
+
 def defaults(specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """The default value of every parameter (lists copied)."""
     return {s.name: (list(s.default) if isinstance(s.default, list) else s.default) for s in specs}

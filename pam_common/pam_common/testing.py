@@ -73,6 +73,31 @@ def wait_until(predicate, timeout: float, period: float = 0.01) -> bool:
     return bool(predicate())
 
 
+def log_lines(text: str, severity: str, logger: str | None = None) -> list[str]:
+    """The rclpy console lines of `text` (a process's stderr) at `severity` ('DEBUG', 'INFO',
+    ...), of `logger` (e.g. 'pam.ukf_node': the node's namespace and name) if given; the
+    default format is `[DEBUG] [<time>] [<logger>]: <message>`."""
+    return [line for line in text.splitlines() if line.startswith(f'[{severity}] ')
+            and (logger is None or f'] [{logger}]: ' in line)]
+
+
+def wait_for_log(process, severity: str, logger: str, text: str, timeout: float = 10.0) -> list:
+    """Wait until `process` logged a line holding `text` at `severity` from `logger`; the lines
+    of that logger at that severity so far."""
+    process.wait_for(lambda: any(text in line
+                                 for line in log_lines(process.stderr, severity, logger)),
+                     timeout, f'the {severity} line {text!r} of {logger}')
+    return log_lines(process.stderr, severity, logger)
+
+
+def assert_no_debug_lines(process) -> None:
+    """Stop `process` (exit code 0) and check that it printed no DEBUG line at all (DEBUG is
+    off unless --log-level turns it on)."""
+    assert process.stop() == 0, process.stderr
+    lines = log_lines(process.stderr + process.stdout, 'DEBUG')
+    assert lines == [], lines
+
+
 # ---------------------------------------------------------------------------- processes
 class NodeProcess:
     """A node executable as a child process with its output captured to files."""
@@ -332,10 +357,13 @@ def probe(ros_context, request):
 
 
 # ---------------------------------------------------------------------------- helpers
-def diagnostic_statuses(collector: Collector, name_prefix: str = 'sim_node') -> list:
-    """All DiagnosticStatus received whose name starts with name_prefix, in order."""
+def diagnostic_statuses(collector: Collector, node: str = 'sim_node') -> list:
+    """All DiagnosticStatus received of `node`, in order: a fully qualified name
+    ('/pam/sim_node': that node only) or a bare node name ('sim_node': in any namespace),
+    pam_common.diagnostics.is_status_of."""
+    from .diagnostics import is_status_of
     return [s for array in collector.messages() for s in array.status
-            if s.name.startswith(name_prefix)]
+            if is_status_of(s.name, node)]
 
 
 def all_finite(values) -> bool:

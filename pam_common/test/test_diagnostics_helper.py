@@ -12,10 +12,13 @@ from pam_common.diagnostics import (
     WARN,
     DiagnosticsPublisher,
     format_value,
+    is_status_of,
     level_from,
     make_status,
+    status_node,
     status_values,
 )
+from pam_common.node_params import HARDWARE_ID_PARAM
 
 
 @pytest.mark.parametrize('value, text', [
@@ -80,6 +83,12 @@ class _FakeNode:
     def get_clock(self):
         return _FakeClock()
 
+    def get_fully_qualified_name(self):
+        return '/ns/x'
+
+    def get_namespace(self):
+        return '/ns'
+
 
 def test_publisher_builds_one_status_per_period():
     node = _FakeNode()
@@ -89,7 +98,7 @@ def test_publisher_builds_one_status_per_period():
         calls.append(1)
         return OK, 'fine', {'samples': len(calls)}
 
-    pub = DiagnosticsPublisher(node, 'x: y', 'hw-1', report, period=0.5)
+    pub = DiagnosticsPublisher(node, 'y', 'hw-1', report, period=0.5)
     assert node.topic[0] is DiagnosticArray and node.topic[1] == '/diagnostics'
     period, tick = node.timers[0]
     assert period == 0.5
@@ -99,9 +108,27 @@ def test_publisher_builds_one_status_per_period():
     array = node.published[-1]
     assert array.header.stamp.sec == 12
     assert len(array.status) == 1
-    assert array.status[0].name == 'x: y' and array.status[0].hardware_id == 'hw-1'
+    assert array.status[0].name == '/ns/x: y' and array.status[0].hardware_id == 'hw-1'
     assert status_values(array.status[0]) == {'samples': '2'}
     assert pub.build().level == OK
+
+
+def test_the_name_carries_the_node_and_hardware_id_defaults_to_the_namespace():
+    """'/ns/x: rig' (the fully qualified node name), hardware_id '' -> the namespace: two
+    stacks in two namespaces are told apart; the parameter row every node shares says so."""
+    status = DiagnosticsPublisher(_FakeNode(), 'rig', '', lambda: (OK, 'ok', {})).build()
+    assert (status.name, status.hardware_id) == ('/ns/x: rig', '/ns')
+    assert (HARDWARE_ID_PARAM.name, HARDWARE_ID_PARAM.default) == ('hardware_id', '')
+    assert HARDWARE_ID_PARAM.type_name == 'string'
+
+
+def test_statuses_are_found_by_node():
+    assert status_node('/joint2/sim_node: simulated rig') == '/joint2/sim_node'
+    assert is_status_of('/joint2/sim_node: simulated rig', 'sim_node')
+    assert is_status_of('/joint2/sim_node: simulated rig', '/joint2/sim_node')
+    assert not is_status_of('/joint2/sim_node: simulated rig', '/pam/sim_node')
+    assert not is_status_of('/pam/sim_node_2: simulated rig', 'sim_node')
+    assert not is_status_of('/pam/sim_node_2: simulated rig', '/pam/sim_node')
 
 
 def test_failing_callback_gives_error_status():

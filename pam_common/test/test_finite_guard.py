@@ -88,7 +88,7 @@ def test_substitutes_arrive_and_are_counted_on_diagnostics(probe):
                                  safe={'u1': 5.5, 'u2': 5.5}, whole=True)
         estimate_pub = guard.wrap(node.create_publisher(JointEstimate, '/guard/estimate', 10),
                                   hold=True)
-        report = DiagnosticsPublisher(node, 'guard_test: publisher', 'test',
+        report = DiagnosticsPublisher(node, 'guard test publisher', 'test',
                                       lambda: (OK, 'publishing', {'k': 1}), period=0.2)
         report.add_check(guard.report)
         return command_pub, estimate_pub
@@ -113,7 +113,7 @@ def test_substitutes_arrive_and_are_counted_on_diagnostics(probe):
     assert guard.counts == {'/guard/valve_command': 2, '/guard/estimate': 5}
 
     def statuses():
-        return diagnostic_statuses(diagnostics, 'guard_test')
+        return diagnostic_statuses(diagnostics, node.get_fully_qualified_name())
     assert wait_until(lambda: any(s.level == WARN for s in statuses()), 10.0)
     warned = next(s for s in statuses() if s.level == WARN)
     assert warned.message.startswith('publishing; non-finite values substituted')

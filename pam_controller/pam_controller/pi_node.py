@@ -19,6 +19,8 @@ values (negative, NaN, u_min >= u_max, beta outside the limits) are rejected.
 A reference outside the rig's envelope (control_loop.ENVELOPE) is clamped to it, counted and
 reported (WARN); a non-finite one is ignored. Nothing non-finite is published (FiniteGuard: a
 command -> safe_command, a state field -> 0, u1/u2 -> safe_command; counted on /diagnostics).
+At DEBUG (`--ros-args --log-level pam.pi_node:=debug`): the output going into saturation and out
+of it (with the anti-windup at work), and reference changes (at most one line a second).
 """
 
 from __future__ import annotations
@@ -28,12 +30,20 @@ import sys
 import time
 
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from std_srvs.srv import SetBool
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import ConfigError, ParamSpec, check_all, check_command, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    ConfigError,
+    ParamSpec,
+    check_all,
+    check_command,
+    usage_text,
+)
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
@@ -98,6 +108,7 @@ PARAMETERS = (
               '(equal co-contraction, the joint rests near 0 deg).'),
     ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),
     WARN_RATIO_PARAM,
+    HARDWARE_ID_PARAM,
 )
 SUMMARY = [
     'Sensor-less PI controller (pam_controller): u1 = beta + Kp e + I, u2 = beta - Kp e - I on',
@@ -153,8 +164,8 @@ class PiNode(Node):
         self.create_subscription(Reference, REFERENCE, self._on_reference, SAMPLE_QOS)
         self.create_service(SetBool, '~/enable', self._on_enable)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: PI controller',
-                                                'pam-pi', self._report)
+        self.diagnostics = DiagnosticsPublisher(self, 'PI controller',
+                                                self.values['hardware_id'], self._report)
         self.diagnostics.add_check(self.guard.report)
         self.diagnostics.add_check(self._clamp_report)
         self.diagnostics.add_check(
@@ -165,6 +176,8 @@ class PiNode(Node):
         self._stale = False
         self.commands = 0
         self.saturated = 0
+        self._was_saturated = False           # the last command's (DEBUG lines at the edges)
+        self._saturated_since = 0             # self.saturated when it went into saturation
         self._reported_clamps = 0
         self.get_logger().info(
             f"{MODE_NAMES[self.loop.mode]} mode, feedback {self.values['feedback']}; gains angle "
@@ -190,6 +203,10 @@ class PiNode(Node):
             self._stale = False
             self.get_logger().info('feedback is back: control resumed')
         out = self.loop.on_feedback(value, stamp_ns(header.stamp))
+        if out.saturated != self._was_saturated:      # an edge: rare, checked per sample
+            self._was_saturated = out.saturated
+            if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+                self._debug_saturation(out)
         self._publish(out, header.stamp, value)
 
     def _publish(self, out, stamp, feedback: float) -> None:
@@ -206,12 +223,36 @@ class PiNode(Node):
         self.commands += 1
         self.saturated += int(out.saturated)
 
+    def _debug_saturation(self, out) -> None:
+        """DEBUG: the output went into saturation, or came out of it."""
+        if out.saturated:
+            self._saturated_since = self.saturated
+            how = ('the integral frozen while the error pushes further'
+                   if self.values['anti_windup'] == 'conditional' else
+                   f"the integral pulled back (tracking_time {self.values['tracking_time']:g} s)")
+            self.get_logger().debug(
+                f'saturated: u1 {out.u1:.3f} V, u2 {out.u2:.3f} V at the limits '
+                f"[{self.values['u_min']:g}, {self.values['u_max']:g}] V (error {out.error:.4g}, "
+                f'P {out.p_term:.3f} V, I {out.i_term:.3f} V); anti-windup: {how}')
+        else:
+            self.get_logger().debug(
+                f'out of saturation after {self.saturated - self._saturated_since} samples: '
+                f'u1 {out.u1:.3f} V, u2 {out.u2:.3f} V, I {out.i_term:.3f} V')
+
     def _on_reference(self, msg: Reference) -> None:
+        previous = self.loop.reference
         message = self.loop.set_reference(msg.mode, msg.value)
         if message.startswith('mode'):
             self.get_logger().info(message)
         elif message:
             self._log_reference(message)
+        if self.loop.reference != previous and self.get_logger().is_enabled_for(
+                LoggingSeverity.DEBUG):
+            # a profile changes it at every message (reference_node: 100 Hz): one line a second
+            before = 'none' if previous is None else f'{previous:g}'
+            self.get_logger().debug(
+                f'{MODE_NAMES[self.loop.mode]} reference {before} -> {self.loop.reference:g} '
+                '(changes within 1 s of a logged one are not logged)', throttle_duration_sec=1.0)
 
     def _on_enable(self, request, response):
         self.loop.set_enabled(request.data)

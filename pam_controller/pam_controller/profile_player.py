@@ -2,10 +2,10 @@
 
 For every pressure sample it publishes the profile's valve command for that sample (stamped with
 the sample's stamp, so it also drives a lockstep simulator), records pressures, ground truth
-(joint_measured) and estimates (estimate, when an estimator runs), and at the end prints a
-summary: rate, missing samples, ranges, and the online estimation metrics I / M / Q of the angle
-(deg) and torque (N m) when estimates arrived. Optionally saves the run in pam-simulate's format
-(.npz / .csv), which pam-evaluate reads.
+(joint_measured) and estimates (estimate, when an estimator runs), and at the end logs a
+summary at INFO (stderr and /rosout): rate, missing samples, ranges, and the online estimation
+metrics I / M / Q of the angle (deg) and torque (N m) when estimates arrived. Optionally saves
+the run in pam-simulate's format (.npz / .csv), which pam-evaluate reads.
 
 Topics (relative, default namespace '/pam'): subscribes pressures, joint_measured, estimate;
 publishes valve_command. Run `profile_player --help` for the parameters.
@@ -18,8 +18,9 @@ import sys
 from rclpy.node import Node
 from rclpy.task import Future
 
+from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import ConfigError, ParamSpec, usage_text
+from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, PRESSURES, VALVE_COMMAND
@@ -66,6 +67,7 @@ PARAMETERS = (
               range=(0.0, 3600.0)),
     ParamSpec('startup_timeout', 30.0, 'double', 's',
               'Give up if no pressure sample arrives within this time.', range=(0.1, 3600.0)),
+    HARDWARE_ID_PARAM,
 )
 
 SUMMARY = [
@@ -114,6 +116,9 @@ class ProfilePlayer(Node):
         self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, SAMPLE_QOS)
         self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
         self._startup_timer = self.create_timer(values['startup_timeout'], self._on_timeout)
+        self.diagnostics = DiagnosticsPublisher(self, 'profile player', values['hardware_id'],
+                                                self._report)
+        self.diagnostics.add_check(self.guard.report)
         self.get_logger().info(
             f"playing the {values['profile']} profile ({len(self.U) / values['rate']:g} s, seed "
             f"{values['seed']}) on {self.resolve_topic_name(VALVE_COMMAND)}, one command per "
@@ -172,18 +177,35 @@ class ProfilePlayer(Node):
     def _on_estimate(self, msg: JointEstimate) -> None:
         self.recorder.add_estimate(msg.header.stamp, msg.angle, msg.torque)
 
+    def _report(self):
+        """/diagnostics: the profile, the samples played of all, the estimates received; WARN
+        while waiting for the first pressure sample."""
+        total = len(self.U)
+        played = min(self.recorder.n, total)
+        values = {'profile': self.values['profile'], 'samples played': played,
+                  'samples in the profile': total,
+                  'progress (%)': 100.0 * played / total if total else 100.0,
+                  'repeated samples': self.recorder.duplicates,
+                  'estimates received': self.recorder.estimates_received}
+        if not self.started:
+            return WARN, 'waiting for the first pressure sample', values
+        if played >= total:
+            return OK, 'profile played', values
+        return OK, f'playing: {played} of {total} samples', values
+
     def finish(self) -> int:
-        """Print the summary (and save the run); returns the exit code."""
+        """Log the summary at INFO (and save the run); returns the exit code."""
         if not self.started:
             return 1
+        logger = self.get_logger()
         for line in self.recorder.summary(self.values['rate']):
-            print(line, flush=True)
+            logger.info(line)
         for topic, count in self.guard.counts.items():
             if count:
-                print(f'non-finite values substituted on {topic}: {count}', flush=True)
+                logger.info(f'non-finite values substituted on {topic}: {count}')
         if self.values['save']:
             path = self.recorder.save(self.values['save'], 1.0 / self.values['rate'])
-            print(f'saved the run to {path}', flush=True)
+            logger.info(f'saved the run to {path}')
         return 0
 
 

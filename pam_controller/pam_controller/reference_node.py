@@ -21,7 +21,7 @@ from rclpy.node import Node
 
 from pam_common.diagnostics import OK, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import ParamSpec, check_all, fail, usage_text
+from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, check_all, fail, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import LATEST_QOS
 from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
@@ -47,6 +47,7 @@ PARAMETERS = (
     ParamSpec('repeat', False, 'bool', '', 'Start over after duration (else hold the last value).'),
     ParamSpec('seed', 0, 'integer', '', 'steps: seed of the levels.', range=(0, 2 ** 31 - 1)),
     ParamSpec('rate', 100.0, 'double', 'Hz', 'Publishing rate.', range=(0.1, 1000.0)),
+    HARDWARE_ID_PARAM,
 )
 SUMMARY = ['Reference profiles for pi_node (pam_controller): publishes reference '
            '(pam_interfaces/Reference) at `rate`. Default namespace /pam.']
@@ -101,7 +102,7 @@ class ReferenceNode(Node):
         self.start = None
         self.published = 0
         self.create_timer(1.0 / self.values['rate'], self._tick)
-        DiagnosticsPublisher(self, f'{self.get_name()}: reference profile', 'pam-reference',
+        DiagnosticsPublisher(self, 'reference profile', self.values['hardware_id'],
                              self._report).add_check(self.guard.report)
         unit = 'rad' if self.mode == Reference.ANGLE else 'N m'
         self.get_logger().info(

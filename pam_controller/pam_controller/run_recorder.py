@@ -49,6 +49,11 @@ class RunRecorder:
     def add_estimate(self, stamp, angle: float, torque: float) -> None:
         self._estimates[stamp_ns(stamp)] = (angle, torque)
 
+    @property
+    def estimates_received(self) -> int:
+        """The estimates recorded (one per stamp)."""
+        return len(self._estimates)
+
     def _matched(self, table: dict, width: int) -> np.ndarray:
         count = min(self.n, self.capacity)
         out = np.full((count, width), np.nan)

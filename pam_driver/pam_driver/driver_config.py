@@ -7,6 +7,7 @@ from typing import Any
 
 from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
     U_MAX,
     U_MIN,
     ConfigError,
@@ -60,6 +61,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
                         'the torque meter (effort empty without one)',
                         "The board's sample rate is known at the handshake: above it, every "
                         'sample is published (a warning).'),
+    HARDWARE_ID_PARAM,
     ParamSpec('inject_internal_error', 0.0, 'double', 's',
               'Fault injection for tests: raise an internal error in the serial thread this long '
               'after the first valve_command reached the valves, once (exercises the safe output '

@@ -34,7 +34,9 @@ vents both valves when no host frame arrives for 250 ms (its own watchdog); the 
 bit and the DEVICE_HEARTBEAT trip counter report it, and /diagnostics counts these 'board vents'
 (daq_protocol.BoardVents): a vent in the last window is an ERROR while armed (the commanded
 output was not applied), a WARN otherwise. The non-finite command warning is throttled to one
-line a second, the lines left out counted on /diagnostics.
+line a second, the lines left out counted on /diagnostics. At DEBUG (`--ros-args --log-level
+pam.driver_node:=debug`) every decision the core reports (arming, going safe, a watchdog trip, a
+sensor fault, the device lost) is followed by one line with the safety state it left.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -70,7 +73,6 @@ from pam_driver.driver_core import Action, DriverCore, SafetyConfig
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 NODE_NAME = 'driver_node'
-HARDWARE_ID = 'pam-daq-board'
 DIAGNOSTICS_PERIOD = 1.0
 LOG_THROTTLE = 1.0
 REFUSED_LOG_PERIOD = 10.0     # s, an incompatible device is logged again at most this often
@@ -141,8 +143,10 @@ class DriverNode(Node):
                                              SAMPLE_QOS)
         self.create_service(Trigger, '~/arm', self._on_arm)
         self.create_service(Trigger, '~/estop', self._on_estop)
-        self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: DAQ board',
-                                                 HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
+        # hardware_id: the parameter (the stack's namespace by default); the board itself is
+        # named in the values (port, device protocol)
+        self._diagnostics = DiagnosticsPublisher(self, 'DAQ board', self.config['hardware_id'],
+                                                 self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
         self._diagnostics.add_check(self._logs.report)
         self.get_logger().info(
@@ -210,7 +214,24 @@ class DriverNode(Node):
                 logger.warning(log.text)
             else:
                 logger.info(log.text)
+        if action.logs and logger.is_enabled_for(LoggingSeverity.DEBUG):
+            self._debug_decision(action)
         return action
+
+    def _debug_decision(self, action: Action) -> None:
+        """DEBUG: the safety state after a decision the core reported (arming, going safe, a
+        watchdog trip, a sensor fault...); not after the throttled non-finite command lines."""
+        decided = [log.text for log in action.logs if not log.throttled]
+        if not decided:
+            return
+        core = self._core
+        with self._lock:
+            state = (f'armed {core.armed}, connected {core.connected}, safe reason '
+                     f'{core.safe_reason or "none"}, output {list(core.output)} V, sensor fault '
+                     f'{core.sensor_fault or "none"}, watchdog trips {core.watchdog_trips} '
+                     f'(last after {core.last_trip_ms:.1f} ms, timeout '
+                     f'{core.config.watchdog_timeout * 1e3:g} ms), e-stops {core.estops}')
+        self.get_logger().debug(f'decided: {"; ".join(decided)} -> {state}')
 
     # ------------------------------------------------------------------ ROS callbacks
     def _on_command(self, msg: ValveCommand) -> None:

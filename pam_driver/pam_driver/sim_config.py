@@ -15,6 +15,7 @@ from typing import Any
 
 from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
     U_MAX,
     U_MIN,
     ConfigError,
@@ -110,6 +111,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('frame_id', 'pam_joint', 'string', '',
               'frame_id of the published headers.'),
     *joint_state_params('joint_states', 'the true joint, as joint_measured'),
+    HARDWARE_ID_PARAM,
 )
 
 PARAMETERS_BY_NAME = {spec.name: spec for spec in PARAMETERS}

@@ -59,15 +59,16 @@ SimulatedRig.set_command); they are counted, logged at most once a second, and r
 /diagnostics (level WARN while bad commands arrived in the last window). The node never dies on
 input and never publishes a non-finite sample.
 
-/diagnostics: one DiagnosticStatus 'sim_node: simulated rig' (hardware_id 'simulated-pam-rig')
-with the timing, target and achieved rate, late steps, skipped periods, max lateness (ms),
-samples published, last sample counter, commands received, non-finite / out-of-range commands,
-past commands ignored, last command u1/u2 (V, as applied), joint mode and plant set, log lines
-suppressed (the warnings on the sample and command paths are throttled to one a second each, the
-lines left out counted, pam_common.throttled_log). Level ERROR if the
-sampling thread failed or a non-finite sample was ever suppressed; WARN if, in the last window,
-bad or past commands arrived, or (realtime) the achieved rate was off by more than 5 % or more
-than 5 % of the samples were late steps; OK otherwise.
+/diagnostics: one DiagnosticStatus '/pam/sim_node: simulated rig' (the node's fully qualified
+name; hardware_id the parameter, by default the namespace) with the timing, target and
+achieved rate, late steps, skipped periods, max lateness (ms), samples published, last sample
+counter, commands received, non-finite / out-of-range commands, past commands ignored, last
+command u1/u2 (V, as applied), joint mode and plant set, log lines suppressed (the warnings on
+the sample and command paths are throttled to one a second each, the lines left out counted,
+pam_common.throttled_log). Level ERROR if the sampling thread failed or a non-finite sample was
+ever suppressed; WARN if, in the last window, bad or past commands arrived, or (realtime) the
+achieved rate was off by more than 5 % or more than 5 % of the samples were late steps; OK
+otherwise.
 """
 
 from __future__ import annotations
@@ -104,7 +105,6 @@ from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
 
 NODE_NAME = 'sim_node'
-HARDWARE_ID = 'simulated-pam-rig'
 DIAGNOSTICS_PERIOD = 1.0   # s
 RATE_TOLERANCE = 0.05      # realtime: WARN when the achieved rate is off by more than this
 LATE_TOLERANCE = 0.05      # realtime: WARN when more than this fraction of a window is late
@@ -174,8 +174,8 @@ class SimNode(Node):
                            if values['publish_clock'] else None)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
-        self._diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: simulated rig',
-                                                 HARDWARE_ID, self._report, DIAGNOSTICS_PERIOD)
+        self._diagnostics = DiagnosticsPublisher(self, 'simulated rig', values['hardware_id'],
+                                                 self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
         self._diagnostics.add_check(self._logs.report)
         for line in self.config.summary:

@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from pam_common.diagnostics import is_status_of
 from pam_driver import calibration
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
@@ -58,7 +59,8 @@ class Rig:
     def status(self, after: float = 0.0):
         """The latest driver_node status received after monotonic time `after` (or None)."""
         arrays = [m for r, m in self.diagnostics.items() if r >= after]
-        statuses = [s for a in arrays for s in a.status if s.name.startswith('driver_node')]
+        statuses = [s for a in arrays for s in a.status
+                    if is_status_of(s.name, '/pam/driver_node')]
         return statuses[-1] if statuses else None
 
     def values(self, after: float = 0.0) -> dict:
@@ -380,7 +382,7 @@ def test_board_vents_reach_the_diagnostics(rig):
 
 def _driver_statuses(r, after):
     return [s for t, a in r.diagnostics.items() if t >= after for s in a.status
-            if s.name.startswith('driver_node')]
+            if is_status_of(s.name, '/pam/driver_node')]
 
 
 def test_default_watchdog_trips_after_50_ms(rig):

@@ -65,8 +65,8 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     sim.wait_for(lambda: len(helpers.diagnostic_statuses(diagnostics)) >= 2, 10.0,
                  'two /diagnostics messages')
     status = helpers.diagnostic_statuses(diagnostics)[-1]
-    assert status.name == 'sim_node: simulated rig'
-    assert status.hardware_id
+    assert status.name == '/pam/sim_node: simulated rig'    # the fully qualified node name
+    assert status.hardware_id == '/pam'                     # hardware_id: the namespace
     values = {kv.key: kv.value for kv in status.values}
     for key in ('timing', 'rate target (Hz)', 'achieved rate (Hz)', 'late steps',
                 'max lateness (ms)', 'samples published', 'commands received',

@@ -8,6 +8,7 @@ from typing import Any
 
 from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
     ConfigError,
     ParamSpec,
     check_all,
@@ -67,6 +68,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     WARN_RATIO_PARAM,
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published estimates.'),
     *joint_state_params('estimate/joint_states', 'the estimate: angle, angular velocity, torque'),
+    HARDWARE_ID_PARAM,
 )
 
 

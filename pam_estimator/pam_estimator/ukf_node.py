@@ -23,6 +23,8 @@ The compiled filter kernel is loaded (and compiled on the very first run) before
 subscriptions are created, so the first samples are not stalled.
 Warnings on the 1 kHz path (bad commands, unusable samples, time going backwards) are throttled
 to one line a second each (pam_common.throttled_log), the lines left out counted on /diagnostics.
+At DEBUG (`--ros-args --log-level pam.ukf_node:=debug`: the node's logger, namespace.name) every
+filter reset and every rejected sample (NIS gate or invalid) is one line, unthrottled.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import math
 import sys
 
 import numpy as np
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -89,8 +92,8 @@ class UkfNode(Node):
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
         self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self.diagnostics = DiagnosticsPublisher(self, f'{self.get_name()}: UKF estimator',
-                                                'pam-ukf', self._report)
+        self.diagnostics = DiagnosticsPublisher(self, 'UKF estimator',
+                                                config.values['hardware_id'], self._report)
         self.diagnostics.add_check(self.guard.report)
         self.diagnostics.add_check(lambda: self.gaps.report(lost_warn_ratio))
         self.diagnostics.add_check(self.logs.report)
@@ -119,10 +122,16 @@ class UkfNode(Node):
             return
         if event.kind == 'reset':
             self._log_reset(event.message)
+            if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+                self._debug_reset(msg, event.message)
         out = event.output
-        if out.update_skipped and self.core.ukf.rejected_samples:
-            self._log_rejected(f'pressure sample ({msg.p1}, {msg.p2}) Pa not usable: update '
-                               f'skipped ({self.core.ukf.rejected_samples} rejected so far)')
+        if out.update_skipped:
+            if self.core.ukf.rejected_samples:
+                self._log_rejected(f'pressure sample ({msg.p1}, {msg.p2}) Pa not usable: '
+                                   f'update skipped ({self.core.ukf.rejected_samples} rejected '
+                                   'so far)')
+            if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+                self._debug_skipped(msg, out.nis)
         est = JointEstimate()
         est.header.stamp = msg.header.stamp
         est.header.frame_id = self.frame_id
@@ -139,6 +148,24 @@ class UkfNode(Node):
         self.estimate_pub.publish(est)
         self.joint_states.publish(est.header.stamp, est.sample, est.angle,
                                   est.angular_velocity, est.torque)
+
+    # DEBUG lines (--log-level debug): every decision, unthrottled; the caller checks the level
+    # first, so nothing is formatted on the 1 kHz path while DEBUG is off
+    def _debug_reset(self, msg: Pressures, why: str) -> None:
+        self.get_logger().debug(
+            f'filter reset at sample {msg.sample} (stamp {stamp_ns(msg.header.stamp)} ns): {why} '
+            f'({self.core.time_resets} resets so far)')
+
+    def _debug_skipped(self, msg: Pressures, nis: float) -> None:
+        ukf = self.core.ukf
+        if ukf.nis_gate > 0.0 and nis > ukf.nis_gate:
+            why = (f'rejected by the NIS gate: NIS {nis:.1f} > nis_gate {ukf.nis_gate:g} '
+                   f'({ukf.gated_samples} gated so far)')
+        else:
+            why = (f'rejected as invalid (outside [{ukf.y_range[0]:g}, {ukf.y_range[1]:g}] Pa or '
+                   f'not finite; {ukf.rejected_samples} so far)')
+        self.get_logger().debug(f'sample {msg.sample}: pressures ({msg.p1:g}, {msg.p2:g}) Pa '
+                                f'{why}: prediction only')
 
     def _on_reset(self, request, response):
         self.core.reset()
