@@ -196,7 +196,8 @@ run() {
   kill -INT "$REC"; wait "$REC" || { echo "bag_record failed:"; cat "$LOGDIR/$NAME.record.log"
                                       exit 1; }
   cleanup
-  grep -v '^\[' "$LOGDIR/$NAME.player.log" | sed 's/^/   /'   # the player's summary
+  # the player's summary: its INFO lines from 'profile_player summary:' on, without the prefix
+  sed -n '/profile_player summary: /,$p' "$LOGDIR/$NAME.player.log" | sed 's/^.*\]: /   /'
   check "$PENDING/$NAME" "$joint" "$angle_deg" || {
     echo "the bag is left in $PENDING/$NAME"; exit 1; }
   mv "$PENDING/$NAME" "$OUT/$NAME"

@@ -90,7 +90,7 @@ def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path
     out = tmp_path / 'run'
     code, rec = record(node_process, out, '-p', 'max_bag_duration:=1.0')
     assert code == 0, rec.stderr
-    assert 'files)' in rec.stdout, rec.stdout
+    assert 'files)' in rec.stderr, rec.stderr       # the summary: INFO lines
     from mcap.reader import make_reader
 
     from pam_bag.bags import bag_info, load_bag
@@ -366,7 +366,7 @@ def test_default_start_waits_for_the_subscriber_and_delivers_every_message(node_
     assert 'every topic has a subscriber (waited' in player.stderr, player.stderr
     wait_until(lambda: len(got) >= N, 5.0)
     assert [index(m) for m in got.messages()] == list(range(N))
-    assert 'sent before any subscriber matched' not in player.stdout, player.stdout
+    assert 'sent before any subscriber matched' not in player.stderr, player.stderr
 
 
 def test_a_topic_without_subscriber_starts_after_the_bound_and_counts_the_lost(node_process,
@@ -394,7 +394,7 @@ def test_a_topic_without_subscriber_starts_after_the_bound_and_counts_the_lost(n
     line = next(s for s in player.stderr.splitlines() if 'first subscriber matched' in s)
     lost = int(line.split('first subscriber matched after ')[1].split()[0])
     assert lost >= 10 and '/nobody/pressures' in line and 'WARN' in line, line
-    assert f'sent before any subscriber matched: /nobody/pressures {lost}' in player.stdout
+    assert f'sent before any subscriber matched: /nobody/pressures {lost}' in player.stderr
 
 
 def test_negative_wait_for_subscribers_is_refused_in_one_line(node_process, small_bag):

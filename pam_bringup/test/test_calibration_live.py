@@ -58,8 +58,8 @@ def record(node_process, probe, bag, joint_mode, initial_state, player_args):
     assert rec.stop() == 0, rec.stderr    # SIGINT: bag_record closes the bag
     sim.stop()
     assert 'first pressure sample: profile started' in player.stderr
-    played = re.search(r'summary: (\d+) samples of (\d+)', player.stdout)
-    assert played and played[1] == played[2], player.stdout   # a command for every sample
+    played = re.search(r'summary: (\d+) samples of (\d+)', player.stderr)   # INFO lines
+    assert played and played[1] == played[2], player.stderr   # a command for every sample
 
 
 def command_coverage(bag):

@@ -10,7 +10,10 @@ clock), each logged line saying how many were left out since the previous one:
 `suppressed` (those not logged) are for /diagnostics: a node makes its throttled logs from one
 ThrottledLogs, whose report() (a check for DiagnosticsPublisher.add_check) sums them.
 Thread-safe (a sampling thread and the executor may both log). No ROS in here: the logger is
-anything with info/warning/error methods (rclpy's RcutilsLogger, logging.Logger).
+anything with debug/info/warning/error methods (rclpy's RcutilsLogger, logging.Logger). Each
+level is logged from a line of its own (_emit): rclpy refuses two severities from one line of
+code ("Logger severity cannot be changed between calls"), so a node's 'error' and 'warning'
+ThrottledLogs on one rclpy logger would otherwise fail at the second.
 """
 
 from __future__ import annotations
@@ -21,6 +24,19 @@ from collections.abc import Callable
 
 #: The /diagnostics key of suppressed_total().
 SUPPRESSED_KEY = 'log lines suppressed (throttled)'
+LEVELS = ('debug', 'info', 'warning', 'error')
+
+
+def _emit(logger, level: str, text: str) -> None:
+    """One call site per severity (see the module docstring)."""
+    if level == 'debug':
+        logger.debug(text)
+    elif level == 'info':
+        logger.info(text)
+    elif level == 'warning':
+        logger.warning(text)
+    else:
+        logger.error(text)
 
 
 class ThrottledLog:
@@ -30,7 +46,9 @@ class ThrottledLog:
                  clock: Callable[[], float] = time.monotonic):
         if not period > 0.0:
             raise ValueError(f'throttle period must be > 0 s, got {period!r}')
-        self._log = getattr(logger, level)
+        if level not in LEVELS:
+            raise ValueError(f'level must be one of {LEVELS}, got {level!r}')
+        self._logger, self._level = logger, level
         self.period = period
         self._clock = clock
         self._lock = threading.Lock()
@@ -52,7 +70,7 @@ class ThrottledLog:
                 text += (f' ({self._left_out} more like this in the last '
                          f'{now - self._last:.1f} s, not logged)')
             self._last, self._left_out = now, 0
-        self._log(text)
+        _emit(self._logger, self._level, text)
         return True
 
 

@@ -71,3 +71,18 @@ def test_works_with_a_standard_logger(caplog):
 def test_bad_period():
     with pytest.raises(ValueError, match='period'):
         ThrottledLog(logging.getLogger('x'), period=0.0)
+
+
+def test_two_levels_on_one_rclpy_logger():
+    """A node's 'error' and 'warning' logs share its rclpy logger: rclpy refused the second
+    ('Logger severity cannot be changed between calls') while both were logged from one line."""
+    from rclpy.logging import get_logger
+    logs = ThrottledLogs(get_logger('throttled_levels'), period=60.0)
+    a, b, c = logs.new('error'), logs.new(), logs.new('debug')
+    assert a('a') and b('b') and c('c')
+    assert logs.report() == ('OK', '', {SUPPRESSED_KEY: 0})
+
+
+def test_unknown_level():
+    with pytest.raises(ValueError, match='level'):
+        ThrottledLog(logging.getLogger('x'), level='loud')
