@@ -69,6 +69,11 @@ pam_common.throttled_log). Level ERROR if the sampling thread failed or a non-fi
 ever suppressed; WARN if, in the last window, bad or past commands arrived, or (realtime) the
 achieved rate was off by more than 5 % or more than 5 % of the samples were late steps; OK
 otherwise.
+
+At DEBUG (`--ros-args --log-level pam.sim_node:=debug`): the valve command applied, when it
+changes markedly: the first command, then one that differs from the last such line's by more than
+COMMAND_STEP_DEBUG (0.5 V) in u1 or u2 (a sanitised command as applied). A command from the past
+(lockstep) is no applied command.
 """
 
 from __future__ import annotations
@@ -79,6 +84,7 @@ import threading
 import time
 
 import rclpy
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -109,6 +115,7 @@ DIAGNOSTICS_PERIOD = 1.0   # s
 RATE_TOLERANCE = 0.05      # realtime: WARN when the achieved rate is off by more than this
 LATE_TOLERANCE = 0.05      # realtime: WARN when more than this fraction of a window is late
 LOG_THROTTLE = 1.0         # s between two log lines about bad input
+COMMAND_STEP_DEBUG = 0.5   # V: a DEBUG line when the applied command moves this far
 
 
 
@@ -132,6 +139,8 @@ class SimNode(Node):
         self._samples_published = 0
         self._republished = 0
         self._last_raw_command = (math.nan, math.nan)
+        self._marked_command = None  # the applied command of the last marked change (V)
+        self._previous_marked = None  # the one before it
         self._reported = {'bad': 0, 'past': 0}
         self._current = None        # lockstep: the messages of the current sample
         self._last_publish = 0.0    # monotonic time of the last (re)publication
@@ -292,6 +301,7 @@ class SimNode(Node):
         with self._lock:
             self._commands_received += 1
             self._last_raw_command = (msg.u1, msg.u2)
+            step = self._rig.k           # the step the command applies from
             if self._lockstep:
                 stamp = stamp_ns(msg.header.stamp)
                 t_k = self._lockstep_stamp(self._rig.k)
@@ -307,11 +317,16 @@ class SimNode(Node):
             else:
                 ok = self._rig.set_command(msg.u1, msg.u2)
                 past = None
+            applied = self._rig.u if past is None else None
             non_finite = self._rig.non_finite_commands
             out_of_range = self._rig.out_of_range_commands
+            received = self._commands_received
         if messages is not None:
             self._stats.record(0.0)
             self._publish(messages)
+        if applied is not None and self._marked_change(applied) and \
+                self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+            self._debug_command(applied, received, step)
         if past is not None:
             self._log_past(f'ignored a valve_command from the past (stamp {stamp / 1e9:.6f} s '
                            f'< t_k = {t_k / 1e9:.6f} s of step {k}); {past} so far')
@@ -320,6 +335,30 @@ class SimNode(Node):
                 f'bad valve_command u1={msg.u1!r} V, u2={msg.u2!r} V sanitised to '
                 f'({self._rig.u[0]:g}, {self._rig.u[1]:g}) V ({SANITISE_RULE}); so far '
                 f'{non_finite} non-finite, {out_of_range} out-of-range voltages')
+
+    def _marked_change(self, applied: tuple[float, float]) -> bool:
+        """True for the first applied command and for one more than COMMAND_STEP_DEBUG away
+        from the last marked one (which it becomes); two comparisons per command, no formatting:
+        cheap at 1 kHz whatever the log level."""
+        marked = self._marked_command
+        if marked is not None and abs(applied[0] - marked[0]) <= COMMAND_STEP_DEBUG and \
+                abs(applied[1] - marked[1]) <= COMMAND_STEP_DEBUG:
+            return False
+        self._previous_marked, self._marked_command = marked, applied
+        return True
+
+    def _debug_command(self, applied: tuple[float, float], received: int, step: int) -> None:
+        """DEBUG: the applied valve command changed markedly (see _marked_change)."""
+        previous = self._previous_marked
+        since = ('the first command (held the initial command u1 '
+                 f"{self.config.values['initial_command'][0]:g} V, u2 "
+                 f"{self.config.values['initial_command'][1]:g} V until now)"
+                 if previous is None else
+                 f'was u1 {previous[0]:.3f} V, u2 {previous[1]:.3f} V at the last such line')
+        self.get_logger().debug(
+            f'valve command applied: u1 {applied[0]:.3f} V, u2 {applied[1]:.3f} V at step '
+            f'{step}, command {received}; {since} (changes within '
+            f'{COMMAND_STEP_DEBUG:g} V of it are not logged)')
 
     def _on_lockstep_watchdog(self) -> None:
         timeout = self.config.values['lockstep_timeout']
