@@ -28,6 +28,8 @@ setup(
             'pam-bringup = pam_bringup.entry_points:pam_bringup',
             'tracking_report = pam_bringup.entry_points:tracking_report',
             'pam-demo = pam_bringup.entry_points:pam_demo',
+            'pam-foxglove = pam_bringup.entry_points:pam_foxglove',
+            'pam_container = pam_bringup.entry_points:pam_container',
         ],
     },
 )

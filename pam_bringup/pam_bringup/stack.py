@@ -11,6 +11,7 @@ Every node is started as `<executable> --ros-args -r __ns:=<namespace> --params-
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,6 +51,19 @@ def stack_nodes(rig: str = 'sim', reference: bool = True,
         nodes.append(CONTROLLER)
     # The bag recorder joins here once it exists (its own option to switch it off).
     return nodes
+
+
+def normal_namespace(text: str) -> str:
+    """A namespace as rcl writes it: leading '/', no trailing one ('pam/' -> '/pam'); ValueError
+    if it is not a valid ROS namespace."""
+    ns = text.strip()
+    if not ns.startswith('/'):
+        ns = '/' + ns
+    if ns != '/':
+        ns = ns.rstrip('/')
+    if not re.fullmatch(r'/|(/[A-Za-z_][A-Za-z0-9_]*)+', ns):
+        raise ValueError(f'{text!r} is not a valid ROS namespace')
+    return ns
 
 
 def every_node() -> list[NodeSpec]:

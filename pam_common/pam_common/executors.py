@@ -27,7 +27,10 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
@@ -163,6 +166,17 @@ class ShutdownWatchdog:
             faulthandler.cancel_dump_traceback_later()
 
 
+@dataclass(frozen=True)
+class Component:
+    """A node as a composable component: its name (the node name), how to make it
+    (`factory(**node_kwargs)`, e.g. namespace=..., cli_args=[...]) and, optionally, what to do
+    when it stops with ROS still up (`stop(node)`, e.g. driver_node's safe output)."""
+
+    name: str
+    factory: Callable[..., Any]
+    stop: Callable[[Any], None] | None = None
+
+
 def run_node(node_factory, name: str, args=None, stop=None) -> int:
     """The main() of a PAM node: init, build the node, spin, shut down.
 
@@ -179,24 +193,53 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
     after its spin ends or the context goes down (ShutdownWatchdog). SIGUSR1 prints every
     thread's stack (stack_dump).
     """
+    return run_nodes([Component(name, node_factory, stop)], name, args=args)
+
+
+def run_nodes(components: Sequence[Component], name: str, args=None,
+              node_kwargs: Sequence[dict] | None = None,
+              on_started: Callable[[list], None] | None = None) -> int:
+    """Several nodes in one process on one executor (composition), each built by its
+    component's factory with its `node_kwargs` entry (default: none), in order, and stopped and
+    destroyed in reverse order; otherwise as run_node (which is this with one component). A
+    ConfigError of any node is one line naming that node, exit code 2, and the nodes already
+    built are destroyed. Only a single node may be a finite one (a `finished` Future).
+    `on_started(nodes)` runs once every node is built and on the executor."""
     from .node_params import ConfigError
     from .params_files import report_ros_args_problem
     code = report_ros_args_problem(sys.argv if args is None else args, name)
     if code is not None:            # a bad params file or -p rule: one line, before rclpy.init
         return code
+    kwargs = list(node_kwargs) if node_kwargs is not None else [{} for _ in components]
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_signals = StopSignals()
     stop_signals.install()
     enable_stack_dump()
     context = rclpy.get_default_context()
     watchdog = ShutdownWatchdog(context)
-    node = None
+    built: list[tuple[Component, Any]] = []
+    finished = None
     try:
         try:
-            node = node_factory()
-            executor = make_executor(events=not node.get_parameter('use_sim_time').value)
-            executor.add_node(node)
-            spin(executor, stop_signals, until=getattr(node, 'finished', None))
+            for component, node_kw in zip(components, kwargs, strict=True):
+                try:
+                    built.append((component, component.factory(**node_kw)))
+                except ConfigError as exc:
+                    if len(components) == 1:
+                        raise
+                    ns = node_kw.get('namespace')
+                    label = f"{ns.rstrip('/')}/{component.name}" if ns else component.name
+                    raise ConfigError(f'{label}: {exc}') from exc
+            nodes = [node for _, node in built]
+            if len(nodes) == 1:
+                finished = getattr(nodes[0], 'finished', None)
+            sim_time = any(node.get_parameter('use_sim_time').value for node in nodes)
+            executor = make_executor(events=not sim_time)
+            for node in nodes:
+                executor.add_node(node)
+            if on_started is not None:
+                on_started(nodes)
+            spin(executor, stop_signals, until=finished)
         except ConfigError as exc:
             print(f'[{name}] error: {exc}', file=sys.stderr)
             return 2
@@ -205,17 +248,17 @@ def run_node(node_factory, name: str, args=None, stop=None) -> int:
         except Exception:
             if not shuts_down(context):
                 raise
-        if getattr(node, 'finished', None) is not None:   # also after an early Ctrl-C
+        if finished is not None:   # also after an early Ctrl-C
             if stop_signals.requested is not None:
                 context.try_shutdown()     # stopped by Ctrl-C: it finishes with ROS down
             watchdog.disarm()
             with interrupts_deferred():
-                return node.finish()
+                return built[0][1].finish()
         return 0
     finally:
         watchdog.arm()      # a no-op after disarm(): a finite node's finish() is done by now
-        if node is not None:
-            if stop is not None:
-                stop(node)
+        for component, node in reversed(built):
+            if component.stop is not None:
+                component.stop(node)
             node.destroy_node()
         rclpy.try_shutdown()

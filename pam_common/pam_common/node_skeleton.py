@@ -28,8 +28,10 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .executors import run_node
+from .executors import Component, run_node, run_nodes
 from .node_params import ParamSpec, check_all, cli_preamble, declare_parameters, merge_overrides
+
+__all__ = ['Component', 'component_main', 'container_main', 'node_main', 'parameter_values']
 
 
 def parameter_values(node, specs: Sequence[ParamSpec],
@@ -48,3 +50,20 @@ def node_main(node_factory, name: str, usage: str, args=None, stop=None) -> int:
     if code is not None:
         return code
     return run_node(node_factory, name, args=argv, stop=stop)
+
+
+def component_main(component: Component, usage: str, args=None) -> int:
+    """node_main for a node module's COMPONENT (the same node alone in its process)."""
+    return node_main(component.factory, component.name, usage, args, stop=component.stop)
+
+
+def container_main(components: Sequence[Component], name: str, usage: str, args: Sequence[str],
+                   node_kwargs: Sequence[dict], on_started=None) -> int:
+    """The main() of a process that composes several nodes (pam_container): `args` are the
+    program name and the ROS arguments only (the container parsed its own options), checked as
+    node_main checks a node's; then run_nodes."""
+    argv = list(args)
+    code = cli_preamble(argv, name, usage)
+    if code is not None:
+        return code
+    return run_nodes(components, name, args=argv, node_kwargs=node_kwargs, on_started=on_started)

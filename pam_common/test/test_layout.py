@@ -11,8 +11,9 @@
     no module but pam_common/qos.py builds a QoSProfile (bag_record and bag_play build theirs
     from what the publishers or the bag offer); the names are the stack's interface, pinned here;
 (e) every node (a class deriving from rclpy's Node) goes through the skeleton: its main() calls
-    node_main, its parameters come from parameter_values, and nothing outside pam_common calls
-    the pieces (declare_parameters, cli_preamble, wants_help, run_node) itself.
+    node_main (or component_main, for a node module's COMPONENT), its parameters come from
+    parameter_values, and nothing outside pam_common calls the pieces (declare_parameters,
+    cli_preamble, wants_help, run_node, run_nodes) itself.
 
 Each scanner is also run on a small bad source, so a check that cannot fail would show.
 """
@@ -52,9 +53,9 @@ QOS_MODULE = ROOT / 'pam_common' / 'pam_common' / 'qos.py'
 QOS_FROM_THE_BAG = {ROOT / 'pam_bag' / 'pam_bag' / 'bag_record.py',
                     ROOT / 'pam_bag' / 'pam_bag' / 'bag_play.py'}
 NODES = {'sim_node', 'driver_node', 'ukf_node', 'pi_node', 'reference_node', 'profile_player',
-         'bag_record', 'bag_play', 'tracking_report'}
+         'bag_record', 'bag_play', 'tracking_report', 'foxglove_view'}
 #: The skeleton's pieces: a node calls node_main and parameter_values, not these.
-PIECES = {'declare_parameters', 'cli_preamble', 'wants_help', 'run_node'}
+PIECES = {'declare_parameters', 'cli_preamble', 'wants_help', 'run_node', 'run_nodes'}
 
 
 # ---------------------------------------------------------------------------- the files
@@ -195,7 +196,7 @@ def skeleton_problems(tree: ast.AST) -> list[str]:
     problems = []
     main = next((node for node in tree.body if isinstance(node, ast.FunctionDef)
                  and node.name == 'main'), None)
-    if main is None or 'node_main' not in {_called(n) for n in ast.walk(main)}:
+    if main is None or not {'node_main', 'component_main'} & {_called(n) for n in ast.walk(main)}:
         problems.append('main() does not call node_main')
     calls = {_called(n) for n in ast.walk(tree)}
     if 'parameter_values' not in calls:

@@ -44,7 +44,7 @@ from pam_common.node_params import (
     check_command,
     usage_text,
 )
-from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
 from pam_common.stamps import stamp_ns
@@ -322,8 +322,12 @@ class PiNode(Node):
         return OK, 'controlling', values
 
 
+#: The node as a component of a composed process (pam_container, pam-bringup --composed).
+COMPONENT = Component(NODE_NAME, PiNode)
+
+
 def main(args=None) -> int:
-    return node_main(PiNode, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+    return component_main(COMPONENT, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
         f'{NODE_NAME} --ros-args -p mode:=torque -p kp_torque:=3.0',
         'ros2 param set /pam/pi_node kp_angle 30.0']), args)
 

@@ -22,7 +22,7 @@ from rclpy.node import Node
 from pam_common.diagnostics import OK, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, check_all, fail, usage_text
-from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS
 from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
 from pam_interfaces.msg import Reference
@@ -131,8 +131,12 @@ class ReferenceNode(Node):
                    f"{'rad' if self.mode == Reference.ANGLE else 'N m'}", values
 
 
+#: The node as a component of a composed process (pam_container, pam-bringup --composed).
+COMPONENT = Component(NODE_NAME, ReferenceNode)
+
+
 def main(args=None) -> int:
-    return node_main(ReferenceNode, NODE_NAME, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
+    return component_main(COMPONENT, usage_text(NODE_NAME, SUMMARY, PARAMETERS, examples=[
         f'{NODE_NAME} --ros-args -p mode:=torque -p amplitude:=2.0 -p profile:=steps']), args)
 
 if __name__ == '__main__':

@@ -55,7 +55,7 @@ from std_srvs.srv import Trigger
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
-from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS, SAMPLE_QOS
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import RateStatistics
@@ -551,8 +551,12 @@ class DriverNode(Node):
         return level, message, values
 
 
+#: The node as a component of a composed process (pam_container, pam-bringup --composed).
+COMPONENT = Component(NODE_NAME, DriverNode, stop=lambda node: node.stop())
+
+
 def main(args=None) -> int:
-    return node_main(DriverNode, NODE_NAME, usage_text(), args, stop=lambda node: node.stop())
+    return component_main(COMPONENT, usage_text(), args)
 
 
 if __name__ == '__main__':

@@ -93,7 +93,7 @@ from sensor_msgs.msg import JointState
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
-from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
@@ -443,9 +443,10 @@ class SimNode(Node):
         return level, message, values
 
 
-def started_sim_node() -> SimNode:
-    """A configured SimNode that samples (ConfigError if its parameters are invalid)."""
-    node = SimNode()
+def started_sim_node(**node_kwargs) -> SimNode:
+    """A configured SimNode that samples (ConfigError if its parameters are invalid);
+    `node_kwargs` go to rclpy's Node (namespace, cli_args, ...)."""
+    node = SimNode(**node_kwargs)
     try:
         node.configure()
     except ConfigError:
@@ -455,9 +456,12 @@ def started_sim_node() -> SimNode:
     return node
 
 
+#: The node as a component of a composed process (pam_container, pam-bringup --composed).
+COMPONENT = Component(NODE_NAME, started_sim_node, stop=lambda node: node.stop())
+
+
 def main(args=None) -> int:
-    return node_main(started_sim_node, NODE_NAME, usage_text(), args,
-                     stop=lambda node: node.stop())
+    return component_main(COMPONENT, usage_text(), args)
 
 
 if __name__ == '__main__':

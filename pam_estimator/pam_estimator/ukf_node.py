@@ -41,7 +41,7 @@ from std_srvs.srv import Trigger
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
-from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns
@@ -207,8 +207,12 @@ class UkfNode(Node):
         return OK, 'estimating', values
 
 
+#: The node as a component of a composed process (pam_container, pam-bringup --composed).
+COMPONENT = Component(NODE_NAME, UkfNode)
+
+
 def main(args=None) -> int:
-    return node_main(UkfNode, NODE_NAME, usage_text(), args)
+    return component_main(COMPONENT, usage_text(), args)
 
 if __name__ == '__main__':
     sys.exit(main())
