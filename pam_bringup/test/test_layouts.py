@@ -20,9 +20,19 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from sensor_msgs.msg import JointState
 
 from pam_common import topics
 from pam_common.testing import installed_config
+from pam_interfaces.msg import (
+    ControllerState,
+    JointEstimate,
+    JointMeasurement,
+    Pressures,
+    Reference,
+    ValveCommand,
+)
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 FOXGLOVE = 'foxglove_layout.json'
@@ -30,16 +40,16 @@ PLOTJUGGLER = 'plotjuggler_layout.xml'
 NAMESPACE = topics.DEFAULT_NAMESPACE
 
 #: The stack's topics (pam_common.topics, relative ones under /pam) and their message types.
-STACK_TOPICS = {topics.absolute(name): msg_type for name, msg_type in (
-    (topics.PRESSURES, 'pam_interfaces/Pressures'),
-    (topics.JOINT_MEASURED, 'pam_interfaces/JointMeasurement'),
-    (topics.VALVE_COMMAND, 'pam_interfaces/ValveCommand'),
-    (topics.ESTIMATE, 'pam_interfaces/JointEstimate'),
-    (topics.JOINT_STATES, 'sensor_msgs/JointState'),
-    (topics.ESTIMATE_JOINT_STATES, 'sensor_msgs/JointState'),
-    (topics.CONTROLLER_STATE, 'pam_interfaces/ControllerState'),
-    (topics.REFERENCE, 'pam_interfaces/Reference'),
-    (topics.DIAGNOSTICS, 'diagnostic_msgs/DiagnosticArray'),
+STACK_TOPICS = {topics.absolute(name): msg_class for name, msg_class in (
+    (topics.PRESSURES, Pressures),
+    (topics.JOINT_MEASURED, JointMeasurement),
+    (topics.VALVE_COMMAND, ValveCommand),
+    (topics.ESTIMATE, JointEstimate),
+    (topics.JOINT_STATES, JointState),
+    (topics.ESTIMATE_JOINT_STATES, JointState),
+    (topics.CONTROLLER_STATE, ControllerState),
+    (topics.REFERENCE, Reference),
+    (topics.DIAGNOSTICS, DiagnosticArray),
 )}
 PLOTTABLE = {'bool', 'boolean', 'octet', 'byte', 'char', 'float', 'double', 'long double',
              'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64'}
@@ -50,9 +60,14 @@ FOXGLOVE_SCRIPT_PREFIX = '/studio_script/'
 
 # ---------------------------------------------------------------------------- message types
 def message_class(msg_type: str):
-    """'pam_interfaces/Pressures' or 'pam_interfaces/msg/Pressures' -> the rosidl class."""
+    """'std_msgs/Header' or 'std_msgs/msg/Header' (a field's type) -> the rosidl class."""
     package, *_, name = msg_type.split('/')
     return getattr(importlib.import_module(f'{package}.msg'), name)
+
+
+def type_name(msg_class) -> str:
+    """Pressures -> 'pam_interfaces/Pressures'."""
+    return f'{msg_class.__module__.split(".")[0]}/{msg_class.__name__}'
 
 
 def field_problem(msg_type: str, path: list[str], plot: bool = True) -> str | None:
@@ -89,7 +104,7 @@ def field_problem(msg_type: str, path: list[str], plot: bool = True) -> str | No
 def reference_problem(topic: str, path: list[str], plot: bool = True) -> str | None:
     if topic not in STACK_TOPICS:
         return f'{topic}: not a topic of the stack ({sorted(STACK_TOPICS)})'
-    problem = field_problem(STACK_TOPICS[topic], path, plot)
+    problem = field_problem(type_name(STACK_TOPICS[topic]), path, plot)
     return f'{topic}: {problem}' if problem else None
 
 
@@ -322,6 +337,9 @@ def test_layouts_are_installed(name):
 BROKEN = {
     'foxglove_misspelt_field': (FOXGLOVE, '"/pam/pressures.p2"', '"/pam/pressures.p_2"',
                                 "no field 'p_2'"),
+    'foxglove_field_of_another_type': (FOXGLOVE, '"/pam/joint_measured.torque"',
+                                       '"/pam/valve_command.torque"',
+                                       "pam_interfaces/ValveCommand has no field 'torque'"),
     'foxglove_unknown_topic': (FOXGLOVE, '"/pam/valve_command.u1"', '"/pam/valve_cmd.u1"',
                                '/pam/valve_cmd: not a topic of the stack'),
     'foxglove_script_reads_a_misspelt_field': (FOXGLOVE, 'event.message.torque - truth',
