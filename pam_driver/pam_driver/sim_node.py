@@ -63,12 +63,15 @@ input and never publishes a non-finite sample.
 name; hardware_id the parameter, by default the namespace) with the timing, target and
 achieved rate, late steps, skipped periods, max lateness (ms), samples published, last sample
 counter, commands received, non-finite / out-of-range commands, past commands ignored, last
-command u1/u2 (V, as applied), joint mode and plant set, log lines suppressed (the warnings on
-the sample and command paths are throttled to one a second each, the lines left out counted,
-pam_common.throttled_log). Level ERROR if the sampling thread failed or a non-finite sample was
-ever suppressed; WARN if, in the last window, bad or past commands arrived, or (realtime) the
-achieved rate was off by more than 5 % or more than 5 % of the samples were late steps; OK
-otherwise.
+command u1/u2 (V, as applied), joint mode and plant set; in realtime, the sample -> command
+latency at the rig (pam_common.latency: each command's arrival minus the stamp of the sample it
+answers, p50/p99/p99.9/max in ms, and the commands that came after the next sample was taken),
+since the start or the last `~/reset_statistics` call (std_srvs/Trigger); log lines suppressed
+(the warnings on the sample and command paths are throttled to one a second each, the lines left
+out counted, pam_common.throttled_log). Level ERROR if the sampling thread failed or a
+non-finite sample was ever suppressed; WARN if, in the last window, bad or past commands
+arrived, or (realtime) the achieved rate was off by more than 5 % or more than 5 % of the samples
+were late steps; OK otherwise.
 
 At DEBUG (`--ros-args --log-level pam.sim_node:=debug`): the valve command applied, when it
 changes markedly: the first command, then one that differs from the last such line's by more than
@@ -89,10 +92,12 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
+from pam_common.latency import LatencyHistogram
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.stamps import ns_stamp, stamp_ns
@@ -144,6 +149,8 @@ class SimNode(Node):
         self._reported = {'bad': 0, 'past': 0}
         self._current = None        # lockstep: the messages of the current sample
         self._last_publish = 0.0    # monotonic time of the last (re)publication
+        self._last_sample_ns = 0     # stamp of the latest sample taken (ns)
+        self._latency = LatencyHistogram()   # realtime: sample -> command at the rig
         self._logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
         self._log_nonfinite = self._logs.new('error')
         self._log_past, self._log_bad = self._logs.new(), self._logs.new()
@@ -183,6 +190,7 @@ class SimNode(Node):
                            if values['publish_clock'] else None)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
+        self.create_service(Trigger, '~/reset_statistics', self._on_reset_statistics)
         self._diagnostics = DiagnosticsPublisher(self, 'simulated rig', values['hardware_id'],
                                                  self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
@@ -239,6 +247,7 @@ class SimNode(Node):
             self._log_nonfinite(f'non-finite sample at step {self._rig.k} suppressed: state '
                                 f'{list(sample.x)}')
             return None
+        self._last_sample_ns = t_ns
         stamp = ns_stamp(t_ns)
         pressures = Pressures()
         pressures.header.stamp = stamp
@@ -317,6 +326,10 @@ class SimNode(Node):
             else:
                 ok = self._rig.set_command(msg.u1, msg.u2)
                 past = None
+                stamp = stamp_ns(msg.header.stamp)
+                if stamp:
+                    self._latency.record((time.time_ns() - stamp) * 1e-9,
+                                         late=stamp < self._last_sample_ns)
             applied = self._rig.u if past is None else None
             non_finite = self._rig.non_finite_commands
             out_of_range = self._rig.out_of_range_commands
@@ -359,6 +372,14 @@ class SimNode(Node):
             f'valve command applied: u1 {applied[0]:.3f} V, u2 {applied[1]:.3f} V at step '
             f'{step}, command {received}; {since} (changes within '
             f'{COMMAND_STEP_DEBUG:g} V of it are not logged)')
+
+    def _on_reset_statistics(self, request, response):
+        """~/reset_statistics: start the sample -> command latency statistics afresh."""
+        self._latency.reset()
+        response.success = True
+        response.message = 'sample -> command latency statistics reset'
+        self.get_logger().info(response.message)
+        return response
 
     def _on_lockstep_watchdog(self) -> None:
         timeout = self.config.values['lockstep_timeout']
@@ -404,6 +425,8 @@ class SimNode(Node):
             }
             if self._lockstep:
                 values['republished samples'] = self._republished
+            else:       # since the start or ~/reset_statistics
+                values.update(self._latency.summary())
             new_bad = bad - self._reported['bad']
             new_past = self._past_commands - self._reported['past']
             self._reported = {'bad': bad, 'past': self._past_commands}

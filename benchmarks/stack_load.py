@@ -1,0 +1,252 @@
+#!/usr/bin/env python3
+"""The whole stack in real time, N joints: CPU, sample -> command latency at the rig, losses.
+
+For each mode, in one run (so the figures compare on the same, possibly busy, machine):
+  separate  every node its own process (pam-bringup's default: 4 processes per joint);
+  composed  every node of every joint in one process (pam_container --namespace j1 .. jN).
+N joints are N complete stacks (sim_node, ukf_node, reference_node, pi_node) in namespaces
+/j1 .. /jN (/pam for one joint) with the parameters of pam_bringup/config/bringup.yaml, on a
+ROS domain of their own. After --warmup s the rigs' latency statistics are reset
+(~/reset_statistics) and the stacks run --duration s more; then the figures of that window:
+  CPU       % of one core per process and in all (/proc utime + stime over the window);
+  latency   at the rig (sim_node): each valve command's arrival minus the stamp of the sample it
+            answers, p50 / p99 / p99.9 / max over every joint's commands (the worst joint's
+            figure for p99.9 and max);
+  late      commands that arrived after the rig had taken the next sample (% of all);
+  lost      samples lost on their way (gaps in the sample counter, counted by ukf_node and
+            pi_node), and periods the simulated rig skipped (it fell more than 10 periods behind);
+--hog N starts N CPU-bound processes (`while True: pass`) beside the stack first.
+The only extra load is this script's /diagnostics subscription (about 1 Hz per node).
+
+    .venv/bin/python benchmarks/stack_load.py [--joints 1] [--duration 20] [--hog 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from fault_stack import campaign_domain
+from pam_bringup.stack import default_params_file, stack_nodes
+from pam_common.diagnostics import status_node, status_values
+from pam_common.executables import find_executable
+
+STACK = stack_nodes('sim')
+READY_TIMEOUT = 90.0    # s: every joint's loop closed (N x 4 Python processes starting)
+HOG = 'while True: pass'
+
+
+def namespaces(joints: int) -> list[str]:
+    return ['/pam'] if joints == 1 else [f'/j{k + 1}' for k in range(joints)]
+
+
+def params_file_for_any_namespace(folder: Path) -> Path:
+    """bringup.yaml with its /pam/<node> sections keyed /**/<node> (every namespace)."""
+    data = yaml.safe_load(default_params_file().read_text())
+    out = {('/**/' + key.rsplit('/', 1)[-1] if key.startswith('/pam/') else key): section
+           for key, section in data.items()}
+    path = folder / 'stack_load_params.yaml'
+    path.write_text(yaml.safe_dump(out, sort_keys=False))
+    return path
+
+
+def exe(name: str, package: str) -> str:
+    path = find_executable(name, package)
+    if path is None:
+        raise SystemExit(f'{name} ({package}) is not installed: run `make setup`')
+    return path
+
+
+def commands(mode: str, spaces: list[str], params: Path) -> list[tuple[str, list[str]]]:
+    """(label, argv) of every process of the mode."""
+    ros = ['--ros-args', '--params-file', str(params)]
+    if mode == 'composed':
+        return [('pam_container', [exe('pam_container', 'pam_bringup'), '--namespace', *spaces,
+                                   *ros])]
+    return [(f'{ns}/{spec.name}', [exe(spec.name, spec.package), *ros[:1], '-r',
+                                   f'__ns:={ns}', *ros[1:]])
+            for ns in spaces for spec in STACK]
+
+
+def cpu_seconds(pid: int) -> float:
+    with open(f'/proc/{pid}/stat') as f:
+        fields = f.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+class Diagnostics:
+    """The latest /diagnostics status of each node (full name), with its receive time."""
+
+    def __init__(self, node):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        self.latest: dict[str, tuple[float, dict]] = {}
+        node.create_subscription(DiagnosticArray, '/diagnostics', self._on,
+                                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+
+    def _on(self, msg) -> None:
+        now = time.monotonic()
+        for status in msg.status:
+            self.latest[status_node(status.name)] = (now, status_values(status))
+
+    def value(self, node: str, key: str) -> float:
+        try:
+            return float(self.latest[node][1][key])
+        except (KeyError, ValueError):
+            return math.nan
+
+    def fresh(self, nodes: list[str], since: float) -> bool:
+        return all(n in self.latest and self.latest[n][0] > since for n in nodes)
+
+
+def spin_until(executor, predicate, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.05)
+        if predicate():
+            return True
+    return False
+
+
+def counters(diag: Diagnostics, spaces: list[str]) -> dict[str, float]:
+    lost = sum(diag.value(f'{ns}/{n}', 'samples lost') for ns in spaces
+               for n in ('ukf_node', 'pi_node'))
+    skipped = sum(diag.value(f'{ns}/sim_node', 'skipped periods') for ns in spaces)
+    return {'lost': lost, 'skipped': skipped}
+
+
+def run_mode(mode: str, spaces: list[str], params: Path, args, node, executor, diag) -> dict:
+    env = dict(os.environ)
+    procs = [(label, subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.PIPE, text=True))
+             for label, argv in commands(mode, spaces, params)]
+    try:
+        sims = [f'{ns}/sim_node' for ns in spaces]
+        everyone = [f'{ns}/{spec.name}' for ns in spaces for spec in STACK]
+
+        def closed() -> bool:
+            return all(diag.value(f'{ns}/pi_node', 'commands published') > 0 and
+                       diag.value(f'{ns}/sim_node', 'commands received') > 0 for ns in spaces)
+        if not spin_until(executor, closed, READY_TIMEOUT):
+            dead = [f'{label} (exit {p.poll()}): {p.stderr.read()[-400:]}'
+                    for label, p in procs if p.poll() is not None]
+            raise SystemExit(f'{mode}: the loops did not close within {READY_TIMEOUT:.0f} s; '
+                             f'dead: {dead or "none"}')
+        spin_until(executor, lambda: False, args.warmup)
+        from std_srvs.srv import Trigger
+        for sim in sims:
+            client = node.create_client(Trigger, f'{sim}/reset_statistics')
+            if not client.wait_for_service(timeout_sec=10.0):
+                raise SystemExit(f'{sim}/reset_statistics: no such service')
+            future = client.call_async(Trigger.Request())
+            if not spin_until(executor, future.done, 10.0):
+                raise SystemExit(f'{sim}/reset_statistics: no answer')
+        t0 = time.monotonic()
+        if not spin_until(executor, lambda: diag.fresh(everyone, t0), 10.0):
+            raise SystemExit(f'{mode}: no fresh /diagnostics of every node')
+        before = counters(diag, spaces)
+        cpu0 = {label: cpu_seconds(p.pid) for label, p in procs}
+        w0 = time.monotonic()
+        spin_until(executor, lambda: False, args.duration)
+        cpu1 = {label: cpu_seconds(p.pid) for label, p in procs}
+        w1 = time.monotonic()
+        if not spin_until(executor, lambda: diag.fresh(everyone, w1), 10.0):
+            raise SystemExit(f'{mode}: no fresh /diagnostics of every node at the end')
+        after = counters(diag, spaces)
+        dead = [label for label, p in procs if p.poll() is not None]
+        if dead:
+            raise SystemExit(f'{mode}: died during the run: {dead}')
+        cpu = {label: 100.0 * (cpu1[label] - cpu0[label]) / (w1 - w0) for label in cpu0}
+
+        def worst(key: str) -> float:
+            return max(diag.value(s, key) for s in sims)
+
+        timed = sum(diag.value(s, 'commands timed') for s in sims)
+        late = sum(diag.value(s, 'commands after the next sample') for s in sims)
+        return {
+            'mode': mode, 'processes': len(procs), 'cpu': cpu, 'cpu total': sum(cpu.values()),
+            'p50': worst('latency p50 (ms)'), 'p99': worst('latency p99 (ms)'),
+            'p99.9': worst('latency p99.9 (ms)'), 'max': worst('latency max (ms)'),
+            'late %': 100.0 * late / timed if timed else math.nan, 'commands': timed,
+            'lost': after['lost'] - before['lost'],
+            'skipped': after['skipped'] - before['skipped']}
+    finally:
+        for _, p in procs:
+            if p.poll() is None:
+                p.send_signal(2)
+        for _, p in procs:
+            try:
+                p.wait(timeout=15.0)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+def print_results(results: list[dict], joints: int, hogs: int, duration: float) -> None:
+    print(f'\n{joints} joint(s) at 1 kHz, {hogs} CPU-bound process(es) beside, window '
+          f'{duration:g} s; latency at the rig (worst joint), CPU in % of one core')
+    print(f"{'mode':<10} {'procs':>5} {'CPU %':>7} {'p50 ms':>7} {'p99 ms':>7} {'p99.9 ms':>8} "
+          f"{'max ms':>7} {'late %':>7} {'lost':>5} {'skipped':>7} {'commands':>9}")
+    for r in results:
+        print(f"{r['mode']:<10} {r['processes']:>5} {r['cpu total']:>7.1f} {r['p50']:>7.3f} "
+              f"{r['p99']:>7.3f} {r['p99.9']:>8.3f} {r['max']:>7.2f} {r['late %']:>7.2f} "
+              f"{r['lost']:>5.0f} {r['skipped']:>7.0f} {r['commands']:>9.0f}")
+    for r in results:
+        print(f"  {r['mode']} CPU per process: "
+              + ', '.join(f'{label} {c:.1f}' for label, c in r['cpu'].items()))
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--joints', type=int, default=1, help='stacks side by side (default 1)')
+    parser.add_argument('--duration', type=float, default=20.0, help='measured window, s')
+    parser.add_argument('--warmup', type=float, default=5.0,
+                        help='s after the loops close before the window starts')
+    parser.add_argument('--hog', type=int, default=0, metavar='N',
+                        help='N CPU-bound processes beside the stack')
+    parser.add_argument('--modes', nargs='+', default=['separate', 'composed'],
+                        choices=['separate', 'composed'])
+    args = parser.parse_args(argv)
+    if args.joints < 1 or args.duration <= 0 or args.warmup < 0 or args.hog < 0:
+        parser.error('--joints >= 1, --duration > 0, --warmup >= 0, --hog >= 0')
+    domain = campaign_domain()
+    spaces = namespaces(args.joints)
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    rclpy.init()
+    node = rclpy.create_node('stack_load_probe')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    diag = Diagnostics(node)
+    hogs = [subprocess.Popen([sys.executable, '-c', HOG]) for _ in range(args.hog)]
+    print(f'ROS_DOMAIN_ID={domain}; joints {", ".join(spaces)}; hogs {args.hog}', flush=True)
+    results = []
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            params = params_file_for_any_namespace(Path(folder))
+            for mode in args.modes:
+                diag.latest.clear()
+                results.append(run_mode(mode, spaces, params, args, node, executor, diag))
+                print(f'{mode}: done', flush=True)
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    print_results(results, args.joints, args.hog, args.duration)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

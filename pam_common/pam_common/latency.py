@@ -1,0 +1,75 @@
+"""Sample -> command latency at the rig, with no ROS in it.
+
+The rig (sim_node, driver_node) stamps each pressure sample; pi_node stamps its valve command with
+the stamp of the sample it answers. When the command reaches the rig, its latency is the rig's
+clock now minus that stamp (one clock: no synchronisation involved), and the command is *late*
+when the rig has already taken a newer sample than the one it answers: the plant then ran one
+period or more on the previous command.
+
+LatencyHistogram keeps every latency in logarithmic bins (2 % wide, 1 us to 100 s), so recording
+costs one logarithm and one increment, memory is fixed (a thousand counters), and any percentile
+is read back to within 2 %. reset() starts a new measurement (a benchmark resets after the
+start-up transient).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+LOWEST = 1e-6           # s, the first bin's lower edge; smaller latencies count in bin 0
+RATIO = 1.02            # width of a bin: its upper edge / its lower edge
+BINS = math.ceil(math.log(1e2 / LOWEST) / math.log(RATIO)) + 1   # up to 100 s; the last is open
+
+
+class LatencyHistogram:
+    """Latencies (s) in logarithmic bins; thread-safe. percentile() returns a bin's upper edge
+    (at most 2 % above the true value), except that it never exceeds the largest latency seen."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._scale = 1.0 / math.log(RATIO)
+        self.reset()
+
+    def reset(self) -> None:
+        with self._lock:
+            self._counts = [0] * BINS
+            self.count = 0
+            self.late = 0
+            self.max = 0.0
+
+    def record(self, latency: float, late: bool = False) -> None:
+        """One latency in s (non-finite values are ignored); `late`: it came after the next
+        sample."""
+        if not math.isfinite(latency):
+            return
+        k = 0 if latency <= LOWEST else min(int(math.log(latency / LOWEST) * self._scale) + 1,
+                                           BINS - 1)
+        with self._lock:
+            self._counts[k] += 1
+            self.count += 1
+            if late:
+                self.late += 1
+            if latency > self.max:
+                self.max = latency
+
+    def percentile(self, q: float) -> float:
+        """The q-th percentile (0 < q <= 100) in s; nan when nothing was recorded."""
+        with self._lock:
+            if not self.count:
+                return math.nan
+            rank = math.ceil(q / 100.0 * self.count)
+            seen = 0
+            for k, n in enumerate(self._counts):
+                seen += n
+                if seen >= rank:    # the last bin is open: its latencies are up to max
+                    return self.max if k == BINS - 1 else min(LOWEST * RATIO ** k, self.max)
+            return self.max
+
+    def summary(self) -> dict[str, float | int]:
+        """The figures a report prints: count, late, p50/p99/p99.9/max in ms."""
+        return {'commands timed': self.count, 'commands after the next sample': self.late,
+                'latency p50 (ms)': self.percentile(50.0) * 1e3,
+                'latency p99 (ms)': self.percentile(99.0) * 1e3,
+                'latency p99.9 (ms)': self.percentile(99.9) * 1e3,
+                'latency max (ms)': self.max * 1e3 if self.count else math.nan}
