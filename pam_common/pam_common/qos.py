@@ -5,6 +5,7 @@
                 subscription of the 1 kHz loop (pi_node's reference too)
     LATEST_QOS  reference (reference_node's publisher), the driver's ~/applied_command,
                 /diagnostics, /clock (CLOCK_QOS)
+    VIEW_QOS    every subscription of a viewer (pam-foxglove)
 
 bag_record and bag_play do not use these: they take each topic's QoS from its publishers or
 from the bag.
@@ -25,3 +26,8 @@ LATEST_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryP
                         depth=10, durability=DurabilityPolicy.VOLATILE)
 #: /clock: LATEST_QOS, compatible with rclpy's best-effort /clock subscription.
 CLOCK_QOS = LATEST_QOS
+#: A viewer's subscriptions (pam-foxglove): best effort, keep last 100, volatile. Compatible with
+#: every publisher above (and /rosout's); a publisher resends nothing to it and waits for no
+#: acknowledgement from it, so a slow viewer never holds the stack up (it misses samples instead).
+VIEW_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST,
+                      depth=100, durability=DurabilityPolicy.VOLATILE)

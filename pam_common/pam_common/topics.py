@@ -19,6 +19,8 @@ without rclpy use these too.
     ~/applied_command  pam_interfaces/ValveCommand       driver_node
     /diagnostics       diagnostic_msgs/DiagnosticArray   every node
     /clock             rosgraph_msgs/Clock               sim_node (publish_clock), bag_play (clock)
+    /rosout            rcl_interfaces/Log                every node (rclpy's log lines; read by
+                                                         pam-foxglove and the tests)
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ REFERENCE = 'reference'
 APPLIED_COMMAND = '~/applied_command'
 DIAGNOSTICS = '/diagnostics'
 CLOCK = '/clock'
+ROSOUT = '/rosout'
 
 
 def absolute(name: str, namespace: str = DEFAULT_NAMESPACE) -> str:

@@ -24,11 +24,13 @@ PACKAGES = sorted(p.parent for p in ROOT.glob('*/package.xml'))
 WORKSPACE = frozenset(p.name for p in PACKAGES)
 
 #: Python module (top level) -> the rosdep key of what installs it (rosdistro python.yaml /
-#: base.yaml for Jazzy; the *-pip keys install from PyPI; python3-mcap-pip,
-#: python3-mcap-ros2-support-pip and python3-zstandard are ours: rosdep/pam.yaml).
+#: base.yaml for Jazzy; the *-pip keys install from PyPI; python3-foxglove-sdk-pip,
+#: python3-mcap-pip, python3-mcap-ros2-support-pip and python3-zstandard are ours:
+#: rosdep/pam.yaml).
 PYTHON_KEYS = {
     'catkin_pkg': 'python3-catkin-pkg',
     'filterpy': 'python3-filterpy-pip',
+    'foxglove': 'python3-foxglove-sdk-pip',
     'matplotlib': 'python3-matplotlib',
     'mcap': 'python3-mcap-pip',
     'mcap_ros2': 'python3-mcap-ros2-support-pip',
@@ -41,6 +43,7 @@ PYTHON_KEYS = {
     'ruff': 'python3-ruff-pip',
     'scipy': 'python3-scipy',
     'serial': 'python3-serial',
+    'websockets': 'python3-websockets',
     'yaml': 'python3-yaml',
     'yourdfpy': 'python3-yourdfpy-pip',
     'zstandard': 'python3-zstandard',

@@ -1,0 +1,209 @@
+"""pam-foxglove: the stack's topics live in Foxglove, without any ROS tool.
+
+An rclpy node (foxglove_view, in the stack's namespace, /pam by default) subscribes to the
+stack's topics (pam_bringup.foxglove_channels.TOPICS: those of pam_common.topics, /diagnostics
+and /rosout) and serves them over the Foxglove WebSocket protocol with foxglove-sdk (PyPI): one
+channel per topic, created at start, so a topic whose publisher appears later is served from
+then on. A channel's messages are the serialized messages as received (raw subscription: no
+conversion here), encoding cdr with a ros2msg schema, stamped with their receive time (ns since
+the epoch, the system clock); Foxglove decodes them as it decodes a bag.
+
+Open Foxglove -> Open connection -> Foxglove WebSocket -> the URL logged at start
+(ws://127.0.0.1:8765 by default). See docs/live_view.md. Run `pam-foxglove --help`.
+
+Exit codes (docs/stopping.md): 0 after Ctrl-C/SIGTERM; 1 when the server cannot listen (the
+port in use: one ERROR line); 2 for bad arguments or parameters (one line).
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import Log
+from rclpy.node import Node
+from rclpy.task import Future
+from sensor_msgs.msg import JointState
+
+from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
+from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
+from pam_common.node_skeleton import node_main, parameter_values
+from pam_common.qos import VIEW_QOS
+from pam_common.topics import DEFAULT_NAMESPACE
+from pam_interfaces.msg import (
+    ControllerState,
+    JointEstimate,
+    JointMeasurement,
+    Pressures,
+    Reference,
+    ValveCommand,
+)
+
+from .foxglove_channels import (
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    MESSAGE_ENCODING,
+    SCHEMA_ENCODING,
+    SHORTHAND_HELP,
+    check_host,
+    expand_shorthands,
+    ros2msg_schemas,
+    select_topics,
+    url,
+)
+
+NODE_NAME = 'foxglove_view'
+PROG = 'pam-foxglove'
+PARAMETERS = (
+    ParamSpec('host', DEFAULT_HOST, 'string', '',
+              'Address to listen on: 127.0.0.1 serves this machine only; 0.0.0.0 every '
+              'interface, so that Foxglove on another machine can connect (the protocol has no '
+              'authentication: trusted networks only).'),
+    ParamSpec('port', DEFAULT_PORT, 'integer', '',
+              'TCP port to listen on; 0: a free port chosen by the system (logged).',
+              range=(0, 65535)),
+    ParamSpec('topics', '', 'string', '',
+              "Comma-separated topics to serve, relative to the namespace or absolute (e.g. "
+              "'pressures,estimate,/diagnostics'); '': all of them (pressures, joint_measured, "
+              'joint_states, estimate, estimate/joint_states, reference, controller_state, '
+              'valve_command, driver_node/applied_command, /diagnostics, /rosout).'),
+    HARDWARE_ID_PARAM,
+)
+SUMMARY = [
+    "Serves the stack's topics live over the Foxglove WebSocket protocol (foxglove-sdk), without",
+    'any ROS tool: in Foxglove, Open connection -> Foxglove WebSocket -> ws://localhost:8765.',
+    'One channel per topic; the messages are forwarded as received (cdr, ros2msg schema: decoded',
+    "as from a bag), stamped with their receive time. Default namespace '/pam'. Stop with Ctrl-C.",
+    'See docs/live_view.md.',
+    '',
+    *SHORTHAND_HELP,
+]
+#: The message classes of the served types (TOPICS names them as 'pkg/msg/Type').
+MESSAGE_CLASSES = (Pressures, JointMeasurement, JointState, JointEstimate, Reference,
+                   ControllerState, ValveCommand, DiagnosticArray, Log)
+
+
+def type_name(cls) -> str:
+    """'pkg/msg/Type' of a rosidl message class."""
+    return f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"
+
+
+class _Subscribers:
+    """foxglove-sdk's ServerListener: which client subscribed to which channel (its callbacks
+    run on the server's threads)."""
+
+    def __init__(self, logger):
+        self._lock = threading.Lock()
+        self._pairs: set[tuple[int, int]] = set()
+        self._logger = logger
+
+    def on_subscribe(self, client, channel) -> None:
+        with self._lock:
+            self._pairs.add((client.id, channel.id))
+        self._logger.debug(f'client {client.id} subscribed to {channel.topic}')
+
+    def on_unsubscribe(self, client, channel) -> None:
+        with self._lock:
+            self._pairs.discard((client.id, channel.id))
+        self._logger.debug(f'client {client.id} unsubscribed from {channel.topic}')
+
+    def clients(self) -> int:
+        """Clients subscribed to at least one channel."""
+        with self._lock:
+            return len({client for client, _ in self._pairs})
+
+
+class FoxgloveView(Node):
+    """Subscribes the selected topics raw and logs each message on its Foxglove channel."""
+
+    def __init__(self, **kwargs):
+        kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+        super().__init__(NODE_NAME, **kwargs)
+        self.values = values = parameter_values(self, PARAMETERS)
+        host = check_host(values['host'])
+        served = select_topics(values['topics'], self.get_namespace())
+        self.finished = Future()        # done only when the server cannot start (exit code 1)
+        self.server = None
+        self.counts: dict[str, int] = {}
+        import foxglove
+        self._sdk_context = foxglove.Context()
+        self._subscribers = _Subscribers(self.get_logger())
+        try:
+            self.server = foxglove.start_server(
+                name=f'{PROG} {self.get_namespace()}', host=host, port=values['port'],
+                context=self._sdk_context, server_listener=self._subscribers)
+        except RuntimeError as exc:
+            problem = str(exc).removeprefix('FoxgloveError: ')
+            self.get_logger().error(f"cannot serve on {host}:{values['port']}: {problem}")
+            self.finished.set_result(1)
+            return
+        self.url = url(host, self.server.port)
+        classes = {type_name(cls): cls for cls in MESSAGE_CLASSES}
+        schemas = ros2msg_schemas([topic.msgtype for topic in served])
+        for topic in served:
+            channel = foxglove.Channel(
+                topic.name, message_encoding=MESSAGE_ENCODING, context=self._sdk_context,
+                schema=foxglove.Schema(name=topic.msgtype, encoding=SCHEMA_ENCODING,
+                                       data=schemas[topic.msgtype]))
+            self.counts[topic.name] = 0
+            self.create_subscription(classes[topic.msgtype], topic.name,
+                                     self._forwarder(topic.name, channel), VIEW_QOS, raw=True)
+            self.get_logger().debug(f'serving {topic.name} ({topic.msgtype}) as channel '
+                                    f'{channel.id()}')
+        DiagnosticsPublisher(self, 'Foxglove live view', values['hardware_id'], self._report)
+        self.get_logger().info(
+            f"serving {len(served)} topic{'' if len(served) == 1 else 's'} of "
+            f'{self.get_namespace()} on {self.url}: in Foxglove, Open connection -> Foxglove '
+            f'WebSocket -> {self.url}')
+
+    def _forwarder(self, name: str, channel):
+        """The raw callback of topic `name`: the message to its channel, stamped now."""
+        counts = self.counts
+
+        def forward(data: bytes, log=channel.log, clock=time.time_ns) -> None:
+            log(data, log_time=clock())
+            counts[name] += 1
+        return forward
+
+    def _report(self):
+        """/diagnostics: the URL, the topics served, the messages forwarded, the clients
+        subscribed; WARN while no message arrived."""
+        received = sum(self.counts.values())
+        values = {'url': self.url, 'topics served': len(self.counts),
+                  'topics with messages': sum(1 for n in self.counts.values() if n),
+                  'messages forwarded': received,
+                  'clients subscribed': self._subscribers.clients()}
+        if not received:
+            return WARN, "no message received yet: is the stack up in this namespace?", values
+        return OK, f'serving on {self.url}', values
+
+    def finish(self) -> int:
+        """Exit code: 1 when the server could not start, else 0 (stopped by Ctrl-C/SIGTERM)."""
+        return self.finished.result() if self.finished.done() else 0
+
+    def stop_server(self) -> None:
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+
+
+def main(args=None) -> int:
+    argv = list(sys.argv if args is None else args)
+    try:
+        argv = expand_shorthands(argv)
+    except ConfigError as exc:
+        print(f'[{PROG}] error: {exc} (see {PROG} --help)', file=sys.stderr)
+        return 2
+    usage = usage_text(PROG, SUMMARY, PARAMETERS, examples=[
+        PROG,
+        f'{PROG} --host 0.0.0.0 --port 8766',
+        f'{PROG} --namespace /joint2 --topics pressures,estimate,/diagnostics',
+        f"{PROG} --ros-args -r __ns:=/joint2 -p port:=8766",
+    ]).replace('[-h]', '[-h] [--host HOST] [--port PORT] [--topics LIST] [--namespace NS]', 1)
+    return node_main(FoxgloveView, PROG, usage, argv, stop=FoxgloveView.stop_server)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
