@@ -184,14 +184,22 @@ class GuardedPublisher:
     every other attribute is the wrapped publisher's."""
 
     def __init__(self, guard: FiniteGuard, publisher, fields: FloatFields,
-                 substitutes: _Substitutes):
+                 substitutes: _Substitutes, subscribed_only: bool = False):
         self._guard = guard
         self._publisher = publisher
         self._fields = fields
         self._substitutes = substitutes
+        self._subscribed_only = subscribed_only
         self.topic = publisher.topic_name
 
+    def wanted(self) -> bool:
+        """False for a subscribed_only publisher that no subscription matches now: its message
+        need not even be built."""
+        return not self._subscribed_only or self._publisher.get_subscription_count() > 0
+
     def publish(self, msg) -> None:
+        if self._subscribed_only and not self._publisher.get_subscription_count():
+            return
         if all_finite(msg, self._fields):
             self._substitutes.last = msg
         else:
@@ -214,16 +222,18 @@ class FiniteGuard:
         self._reported: dict[str, int] = {}
 
     def wrap(self, publisher, safe: Mapping[str, float] | None = None, hold: bool = False,
-             whole: bool = False):
+             whole: bool = False, subscribed_only: bool = False):
         """The publisher, guarded (see the module docstring); as is if its message type has no
-        float field."""
+        float field. subscribed_only: publish only while a subscription (in any process, on any
+        host) matches, for the optional 1 kHz streams nothing in the loop reads (JointState,
+        controller_state): about 10 us per message saved when nobody listens."""
         fields = float_fields(publisher.msg_type)
         if fields is None:
             return publisher
         with self._lock:
             self.counts.setdefault(publisher.topic_name, 0)
         return GuardedPublisher(self, publisher, fields,
-                                _Substitutes(safe or {}, hold, whole))
+                                _Substitutes(safe or {}, hold, whole), subscribed_only)
 
     def _substituted(self, topic: str, msg, changed: int) -> None:
         with self._lock:

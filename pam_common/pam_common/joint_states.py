@@ -16,12 +16,13 @@ The node creates the publisher (inside FiniteGuard.wrap: pam_controller/test/
 test_finite_publishers.py reads the node modules for that) and owns the sensor_msgs dependency;
 this module imports no message package.
 
-Cheap on the 1 kHz path: the message is built once (name, frame_id, one-element arrays) and each
-published sample only sets the stamp and the three values in place. Because the message is
-reused, its guard cannot hold the last finite value (the last message it saw is the same
-object): the values are taken from the project's message AFTER its own guard (hold=True) has
-replaced a non-finite value by the last finite one, so they are finite already; the JointState
-guard is the rule's second line (substitute 0.0).
+Cheap on the 1 kHz path: nothing is done while no subscription (in any process, on any host)
+matches the publisher, since nothing in the loop reads JointState; the message is built once
+(name, frame_id, one-element arrays) and each published sample only sets the stamp and the three
+values in place. Because the message is reused, its guard cannot hold the last finite value (the
+last message it saw is the same object): the values are taken from the project's message AFTER
+its own guard (hold=True) has replaced a non-finite value by the last finite one, so they are
+finite already; the JointState guard is the rule's second line (substitute 0.0).
 
 Decimation (joint_states_rate below the sample rate): every n-th sample, n =
 round(sample_rate / joint_states_rate), chosen by the rig's sample counter (Pressures.sample,
@@ -156,8 +157,8 @@ class JointStates:
                 effort: float | None = None) -> None:
         """Publish the joint at `stamp` (builtin_interfaces/Time) if sample `sample` is due:
         position rad, velocity rad/s, effort N m (None: no effort measured, an empty array)."""
-        if not self.due(sample):
-            return
+        if not self.due(sample) or not self.publisher.get_subscription_count():
+            return      # nobody listens: not even built (the loop itself never reads it)
         msg = self.message
         msg.header.stamp = stamp
         msg.position[0] = position

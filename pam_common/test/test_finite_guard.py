@@ -126,3 +126,26 @@ def test_substitutes_arrive_and_are_counted_on_diagnostics(probe):
     last = statuses()[-1]
     assert last.level == OK and last.message == 'publishing'
     assert status_values(last)['non-finite values substituted on /guard/estimate'] == '5'
+
+
+def test_subscribed_only_publishes_while_a_subscription_matches(probe):
+    """An optional stream (subscribed_only): nothing is done while nobody listens (not even the
+    check: a non-finite value is not counted); once a subscription matches, it is published."""
+    node = probe.node
+    guard = FiniteGuard(node.get_logger())
+    pub = probe._in_spin_thread(lambda: guard.wrap(
+        node.create_publisher(JointEstimate, '/guard/optional', 10), subscribed_only=True))
+    always = probe._in_spin_thread(lambda: guard.wrap(
+        node.create_publisher(JointEstimate, '/guard/always', 10)))
+    assert not pub.wanted() and always.wanted()
+    pub.publish(estimate(angle=NAN))
+    always.publish(estimate(angle=NAN))                      # no subscriber: still checked
+    assert guard.counts == {'/guard/optional': 0, '/guard/always': 1}
+
+    got = probe.subscribe(JointEstimate, '/guard/optional')
+    assert wait_until(pub.wanted, 20.0), 'the subscription never matched'
+    pub.publish(estimate(angle=0.25))
+    pub.publish(estimate(angle=NAN))
+    assert wait_until(lambda: len(got) == 2, 10.0)
+    assert [m.angle for m in got.messages()] == [0.25, 0.0]
+    assert guard.counts['/guard/optional'] == 1

@@ -8,7 +8,8 @@ Run `pi_node --help` for the parameters. Topics resolve under the node namespace
     reference         pam_interfaces/Reference         subscribed: mode ANGLE (rad) / TORQUE (N m)
     valve_command     pam_interfaces/ValveCommand      published once per feedback sample, with
                                                        the feedback's stamp
-    controller_state  pam_interfaces/ControllerState   published with every command
+    controller_state  pam_interfaces/ControllerState   published with every command while a
+                                                       subscription matches (not built else)
     /diagnostics      diagnostic_msgs/DiagnosticArray  about 1 Hz; with the estimate's sample
                                                        counter: samples lost (WARN over
                                                        lost_samples_warn_ratio in the period)
@@ -152,8 +153,9 @@ class PiNode(Node):
         safe = dict(zip(('u1', 'u2'), self.loop.safe_command, strict=True))
         self.command_pub = self.guard.wrap(
             self.create_publisher(ValveCommand, VALVE_COMMAND, SAMPLE_QOS), safe=safe, whole=True)
-        self.state_pub = self.guard.wrap(
-            self.create_publisher(ControllerState, CONTROLLER_STATE, SAMPLE_QOS), safe=safe)
+        self.state_pub = self.guard.wrap(      # for the outside: only while subscribed
+            self.create_publisher(ControllerState, CONTROLLER_STATE, SAMPLE_QOS), safe=safe,
+            subscribed_only=True)
         if self.values['feedback'] == 'estimate':
             self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
         else:
@@ -214,14 +216,16 @@ class PiNode(Node):
         command.header.stamp = stamp
         command.header.frame_id = 'pam_joint'
         self.command_pub.publish(command)
+        self.commands += 1
+        self.saturated += int(out.saturated)
+        if not self.state_pub.wanted():
+            return
         state = ControllerState(mode=self.loop.mode, reference=float(self.loop.reference or 0.0),
                                 feedback=float(feedback) if math.isfinite(feedback) else 0.0,
                                 error=out.error, p_term=out.p_term, i_term=out.i_term,
                                 u1=out.u1, u2=out.u2, saturated=out.saturated)
         state.header = command.header
         self.state_pub.publish(state)
-        self.commands += 1
-        self.saturated += int(out.saturated)
 
     def _debug_saturation(self, out) -> None:
         """DEBUG: the output went into saturation, or came out of it."""
