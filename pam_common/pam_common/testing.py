@@ -100,11 +100,12 @@ def assert_no_debug_lines(process) -> None:
 
 # ---------------------------------------------------------------------------- processes
 class NodeProcess:
-    """A node executable as a child process with its output captured to files."""
+    """A node executable as a child process with its output captured to files; `prefix` (e.g.
+    ['ip', 'netns', 'exec', NAME]) runs it through a command that execs it (same pid)."""
 
-    def __init__(self, name, package, args, env, cwd):
+    def __init__(self, name, package, args, env, cwd, prefix=()):
         self.name = name
-        self.args = [executable(name, package), *args]
+        self.args = [*prefix, executable(name, package), *args]
         self._out = tempfile.TemporaryFile(mode='w+b')   # noqa: SIM115 - closed by close()
         self._err = tempfile.TemporaryFile(mode='w+b')   # noqa: SIM115 - closed by close()
         self.proc = subprocess.Popen(self.args, env=env, cwd=cwd, stdout=self._out,
