@@ -17,12 +17,14 @@ port in use: one ERROR line); 2 for bad arguments or parameters (one line).
 
 from __future__ import annotations
 
+import logging
 import sys
 import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Log
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
@@ -85,6 +87,38 @@ MESSAGE_CLASSES = (Pressures, JointMeasurement, JointState, JointEstimate, Refer
                    ControllerState, ValveCommand, DiagnosticArray, Log)
 
 
+#: foxglove-sdk's Python loggers (its Rust code logs through them) and the lowest level forwarded
+#: (DEBUG for foxglove when the node's logger is at DEBUG).
+SDK_LOGGERS = {'foxglove': logging.INFO, 'tungstenite': logging.WARNING}
+
+
+class _SdkLog(logging.Handler):
+    """foxglove-sdk's log records on the node's rclpy logger ('foxglove-sdk: ...'), so they
+    reach /rosout with the node's own lines: clients registered and gone, failures."""
+
+    def __init__(self, logger):
+        super().__init__()
+        self._logger = logger
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = f'foxglove-sdk: {record.getMessage()}'
+        if record.levelno >= logging.ERROR:
+            self._logger.error(text)
+        elif record.levelno >= logging.WARNING:
+            self._logger.warning(text)
+        elif record.levelno >= logging.INFO:
+            self._logger.info(text)
+        else:
+            self._logger.debug(text)
+
+    def install(self, debug: bool) -> None:
+        for name, level in SDK_LOGGERS.items():
+            sdk = logging.getLogger(name)
+            sdk.addHandler(self)
+            sdk.setLevel(logging.DEBUG if debug and name == 'foxglove' else level)
+            sdk.propagate = False       # not also Python's last-resort print to stderr
+
+
 def type_name(cls) -> str:
     """'pkg/msg/Type' of a rosidl message class."""
     return f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"
@@ -127,6 +161,8 @@ class FoxgloveView(Node):
         self.finished = Future()        # done only when the server cannot start (exit code 1)
         self.server = None
         self.counts: dict[str, int] = {}
+        logger = self.get_logger()
+        _SdkLog(logger).install(debug=logger.is_enabled_for(LoggingSeverity.DEBUG))
         import foxglove
         self._sdk_context = foxglove.Context()
         self._subscribers = _Subscribers(self.get_logger())

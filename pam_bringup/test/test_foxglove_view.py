@@ -28,7 +28,13 @@ from mcap_ros2.decoder import DecoderFactory
 from rcl_interfaces.msg import Log
 
 from pam_bringup.foxglove_channels import TOPICS
-from pam_common.testing import STARTUP_TIMEOUT, child_env, executable, wait_for_log
+from pam_common.testing import (
+    STARTUP_TIMEOUT,
+    child_env,
+    executable,
+    log_lines,
+    wait_for_log,
+)
 from pam_interfaces.msg import ValveCommand
 
 SUBPROTOCOL = 'foxglove.sdk.v1'   # foxglove-sdk refuses foxglove.websocket.v1 (HTTP 400)
@@ -199,6 +205,9 @@ def test_a_client_receives_every_channel_decodable(node_process, probe, ros_doma
     for topic, (_, stamp) in first.items():     # receive times, ns since the epoch
         assert started <= stamp <= time.time_ns(), topic
     assert first['/rosout'][0].msg        # a node's line or the probe's
+    # foxglove-sdk's own lines come through the node's rclpy logger
+    assert any('foxglove-sdk: Registered client 127.0.0.1:' in line
+               for line in log_lines(view.stderr, 'INFO', 'pam.foxglove_view')), view.stderr
     assert view.stop() == 0, view.stderr
     assert 'Traceback' not in view.stderr, view.stderr
 
@@ -242,8 +251,9 @@ def test_a_free_port_chosen_by_the_system_is_logged(node_process):
     view = node_process('pam-foxglove', 'pam_bringup', '-p', 'port:=0', '-p',
                         'topics:=pressures')
     lines = wait_for_log(view, 'INFO', 'pam.foxglove_view', 'ws://127.0.0.1:', STARTUP_TIMEOUT)
-    port = int(lines[0].split('ws://127.0.0.1:')[1].split(':')[0])
+    line = next(line for line in lines if 'ws://127.0.0.1:' in line)
+    port = int(line.split('ws://127.0.0.1:')[1].split(':')[0])
     assert port > 0
     socket.create_connection(('127.0.0.1', port), 5.0).close()
-    assert 'serving 1 topic of /pam' in lines[0], lines
+    assert 'serving 1 topic of /pam' in line, lines
     assert view.stop() == 0, view.stderr
