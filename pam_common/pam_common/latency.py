@@ -73,3 +73,32 @@ class LatencyHistogram:
                 'latency p99 (ms)': self.percentile(99.0) * 1e3,
                 'latency p99.9 (ms)': self.percentile(99.9) * 1e3,
                 'latency max (ms)': self.max * 1e3 if self.count else math.nan}
+
+
+class CommandTiming:
+    """The rig's side of the latency (sim_node, driver_node): on_sample(stamp) for every sample
+    taken, on_command(stamp, now) for every valve command received, both in ns of one clock;
+    `histogram` holds the figures. A command without a stamp (0) is not timed."""
+
+    def __init__(self):
+        self.histogram = LatencyHistogram()
+        self._last_sample_ns = 0
+
+    def on_sample(self, stamp_ns: int) -> None:
+        self._last_sample_ns = stamp_ns
+
+    def on_command(self, stamp_ns: int, now_ns: int) -> None:
+        if stamp_ns:
+            self.histogram.record((now_ns - stamp_ns) * 1e-9,
+                                  late=stamp_ns < self._last_sample_ns)
+
+    def reset_callback(self, logger):
+        """The callback of a node's `~/reset_statistics` service (std_srvs/Trigger): starts the
+        figures afresh, says so in the response and at INFO."""
+        def on_reset(request, response):
+            self.histogram.reset()
+            response.success = True
+            response.message = 'sample -> command latency statistics reset'
+            logger.info(response.message)
+            return response
+        return on_reset

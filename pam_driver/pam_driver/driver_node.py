@@ -14,7 +14,8 @@ an encoder, `joint_states` (sensor_msgs/JointState for the standard tools: joint
 angle and velocity, the torque as effort, empty without a torque meter; 1 sample in
 round(board rate / joint_states_rate)); subscribes
 `valve_command`; publishes `~/applied_command` (the voltages the valves actually get, on each
-change) and `/diagnostics`. Services `~/arm` and `~/estop` (std_srvs/Trigger).
+change) and `/diagnostics`. Services `~/arm`, `~/estop` and `~/reset_statistics` (std_srvs/Trigger;
+the last restarts the sample -> command latency figures on /diagnostics, pam_common.latency).
 
 Threads: a reader thread owns the serial connection (connect, handshake, read samples, send the
 heartbeat, the command watchdog tick, reconnect with exponential backoff); the executor thread
@@ -55,8 +56,10 @@ from std_srvs.srv import Trigger
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
+from pam_common.latency import CommandTiming
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS, SAMPLE_QOS
+from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import RateStatistics
 from pam_common.topics import (
@@ -143,6 +146,9 @@ class DriverNode(Node):
                                              SAMPLE_QOS)
         self.create_service(Trigger, '~/arm', self._on_arm)
         self.create_service(Trigger, '~/estop', self._on_estop)
+        self._timing = CommandTiming()      # sample -> command latency at the rig
+        self.create_service(Trigger, '~/reset_statistics',
+                            self._timing.reset_callback(self.get_logger()))
         # hardware_id: the parameter (the stack's namespace by default); the board itself is
         # named in the values (port, device protocol)
         self._diagnostics = DiagnosticsPublisher(self, 'DAQ board', self.config['hardware_id'],
@@ -235,6 +241,7 @@ class DriverNode(Node):
 
     # ------------------------------------------------------------------ ROS callbacks
     def _on_command(self, msg: ValveCommand) -> None:
+        self._timing.on_command(stamp_ns(msg.header.stamp), time.time_ns())
         action = self._decide(lambda: self._core.on_command(msg.u1, msg.u2, time.monotonic()))
         if action.ok and self._inject_at is None and self.config['inject_internal_error'] > 0.0:
             self._inject_at = time.monotonic() + self.config['inject_internal_error']
@@ -431,7 +438,9 @@ class DriverNode(Node):
         cal = self.cal
         p = (cal.pressure(0, s.adc_p1), cal.pressure(1, s.adc_p2))
         self._decide(lambda: self._core.on_sample((s.adc_p1, s.adc_p2), p, now))
-        stamp = self.get_clock().now().to_msg()
+        t_ns = self.get_clock().now().nanoseconds
+        self._timing.on_sample(t_ns)
+        stamp = ns_stamp(t_ns)
         msg = Pressures()
         msg.header.stamp = stamp
         msg.header.frame_id = self._frame_id
@@ -498,6 +507,7 @@ class DriverNode(Node):
                 'disconnects': core.disconnects,
                 'handshake failures': self._handshake_failures,
                 'device refused': self._incompatible or 'none',
+                **self._timing.histogram.summary(),    # since start or ~/reset_statistics
                 'crc errors': d.crc_errors,
                 'garbage bytes': d.garbage_bytes,
                 'lost frames': self._rx_seq.lost,

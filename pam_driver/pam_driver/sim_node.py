@@ -97,7 +97,7 @@ from std_srvs.srv import Trigger
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
-from pam_common.latency import LatencyHistogram
+from pam_common.latency import CommandTiming
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.stamps import ns_stamp, stamp_ns
@@ -149,8 +149,7 @@ class SimNode(Node):
         self._reported = {'bad': 0, 'past': 0}
         self._current = None        # lockstep: the messages of the current sample
         self._last_publish = 0.0    # monotonic time of the last (re)publication
-        self._last_sample_ns = 0     # stamp of the latest sample taken (ns)
-        self._latency = LatencyHistogram()   # realtime: sample -> command at the rig
+        self._timing = CommandTiming()   # realtime: sample -> command latency at the rig
         self._logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
         self._log_nonfinite = self._logs.new('error')
         self._log_past, self._log_bad = self._logs.new(), self._logs.new()
@@ -190,7 +189,8 @@ class SimNode(Node):
                            if values['publish_clock'] else None)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
-        self.create_service(Trigger, '~/reset_statistics', self._on_reset_statistics)
+        self.create_service(Trigger, '~/reset_statistics',
+                            self._timing.reset_callback(self.get_logger()))
         self._diagnostics = DiagnosticsPublisher(self, 'simulated rig', values['hardware_id'],
                                                  self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
@@ -247,7 +247,7 @@ class SimNode(Node):
             self._log_nonfinite(f'non-finite sample at step {self._rig.k} suppressed: state '
                                 f'{list(sample.x)}')
             return None
-        self._last_sample_ns = t_ns
+        self._timing.on_sample(t_ns)
         stamp = ns_stamp(t_ns)
         pressures = Pressures()
         pressures.header.stamp = stamp
@@ -326,10 +326,7 @@ class SimNode(Node):
             else:
                 ok = self._rig.set_command(msg.u1, msg.u2)
                 past = None
-                stamp = stamp_ns(msg.header.stamp)
-                if stamp:
-                    self._latency.record((time.time_ns() - stamp) * 1e-9,
-                                         late=stamp < self._last_sample_ns)
+                self._timing.on_command(stamp_ns(msg.header.stamp), time.time_ns())
             applied = self._rig.u if past is None else None
             non_finite = self._rig.non_finite_commands
             out_of_range = self._rig.out_of_range_commands
@@ -372,14 +369,6 @@ class SimNode(Node):
             f'valve command applied: u1 {applied[0]:.3f} V, u2 {applied[1]:.3f} V at step '
             f'{step}, command {received}; {since} (changes within '
             f'{COMMAND_STEP_DEBUG:g} V of it are not logged)')
-
-    def _on_reset_statistics(self, request, response):
-        """~/reset_statistics: start the sample -> command latency statistics afresh."""
-        self._latency.reset()
-        response.success = True
-        response.message = 'sample -> command latency statistics reset'
-        self.get_logger().info(response.message)
-        return response
 
     def _on_lockstep_watchdog(self) -> None:
         timeout = self.config.values['lockstep_timeout']
@@ -426,7 +415,7 @@ class SimNode(Node):
             if self._lockstep:
                 values['republished samples'] = self._republished
             else:       # since the start or ~/reset_statistics
-                values.update(self._latency.summary())
+                values.update(self._timing.histogram.summary())
             new_bad = bad - self._reported['bad']
             new_past = self._past_commands - self._reported['past']
             self._reported = {'bad': bad, 'past': self._past_commands}

@@ -457,3 +457,31 @@ def test_a_second_driver_cannot_share_the_port(rig, node_process):
     assert values['disconnects'] == '0' and values['lost frames'] == '0', values
     assert values['crc errors'] == '0' and values['garbage bytes'] == '0', values
     assert second.alive() and r.driver.alive()
+
+
+def test_sample_to_command_latency_at_the_rig(rig):
+    """Commands stamped with a sample five samples old are timed about 5 ms after it and all
+    counted after the next sample; ~/reset_statistics starts the figures afresh."""
+    r = rig()
+    r.driver.wait_for(lambda: len(r.pressures) > 10, 10.0, 'pressures')
+    assert r.call('reset_statistics').success
+    since = time.monotonic()
+    values = r.wait_values(lambda v: r.status(since) is not None, 5.0, 'fresh diagnostics')
+    values = r.values(since)
+    assert values['commands timed'] == '0' and values['latency p50 (ms)'] == 'n/a'
+    sent = 0
+    while sent < 200:
+        samples = r.pressures.messages()
+        command = ValveCommand(u1=5.0, u2=5.0)
+        command.header.stamp = samples[-6].header.stamp
+        r.commands.publish(command)
+        sent += 1
+        time.sleep(0.002)
+    since = time.monotonic()
+    r.wait_values(lambda v: r.status(since) is not None, 5.0, 'fresh diagnostics')
+    values = r.values(since)
+    assert int(values['commands timed']) >= 180, values
+    assert values['commands after the next sample'] == values['commands timed']
+    assert float(values['latency p50 (ms)']) >= 4.0, values
+    assert all(math.isfinite(float(values[k])) for k in (
+        'latency p50 (ms)', 'latency p99 (ms)', 'latency p99.9 (ms)', 'latency max (ms)'))
