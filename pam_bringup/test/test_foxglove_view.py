@@ -247,13 +247,15 @@ def test_bad_arguments_are_one_line_and_exit_code_2(ros_domain, args, text):
 
 
 def test_a_free_port_chosen_by_the_system_is_logged(node_process):
-    """port:=0: the server listens where the system says, and the URL logged is that port."""
-    view = node_process('pam-foxglove', 'pam_bringup', '-p', 'port:=0', '-p',
-                        'topics:=pressures')
-    lines = wait_for_log(view, 'INFO', 'pam.foxglove_view', 'ws://127.0.0.1:', STARTUP_TIMEOUT)
+    """port:=0: the server listens where the system says, and the URL logged is that port;
+    the shorthands put the node in another namespace and select its topics."""
+    view = node_process('pam-foxglove', 'pam_bringup', '--namespace', 'joint2', '--topics',
+                        'pressures', '--ros-args', '-p', 'port:=0', raw=True)
+    lines = wait_for_log(view, 'INFO', 'joint2.foxglove_view', 'ws://127.0.0.1:',
+                         STARTUP_TIMEOUT)
     line = next(line for line in lines if 'ws://127.0.0.1:' in line)
     port = int(line.split('ws://127.0.0.1:')[1].split(':')[0])
     assert port > 0
     socket.create_connection(('127.0.0.1', port), 5.0).close()
-    assert 'serving 1 topic of /pam' in line, lines
+    assert 'serving 1 topic of /joint2' in line, lines
     assert view.stop() == 0, view.stderr
