@@ -15,10 +15,13 @@ ROS domain of their own. After --warmup s the rigs' latency statistics are reset
   late      commands that arrived after the rig had taken the next sample (% of all);
   lost      samples lost on their way (gaps in the sample counter, counted by ukf_node and
             pi_node), and periods the simulated rig skipped (it fell more than 10 periods behind);
---hog N starts N CPU-bound processes (`while True: pass`) beside the stack first.
+--rig driver runs the driver path instead: per joint a pam-emulator (the DAQ board on a pty, its
+plant simulated) and driver_node, armed once the loop runs; the latency is then timed by
+driver_node (the host's end of the serial line). --hog N starts N CPU-bound processes
+(`while True: pass`) beside the stack first.
 The only extra load is this script's /diagnostics subscription (about 1 Hz per node).
 
-    .venv/bin/python benchmarks/stack_load.py [--joints 1] [--duration 20] [--hog 0]
+    .venv/bin/python benchmarks/stack_load.py [--joints 1] [--duration 20] [--hog 0] [--rig sim]
 """
 
 from __future__ import annotations
@@ -41,7 +44,6 @@ from pam_bringup.stack import default_params_file, stack_nodes
 from pam_common.diagnostics import status_node, status_values
 from pam_common.executables import find_executable
 
-STACK = stack_nodes('sim')
 READY_TIMEOUT = 90.0    # s: every joint's loop closed (N x 4 Python processes starting)
 HOG = 'while True: pass'
 
@@ -50,11 +52,15 @@ def namespaces(joints: int) -> list[str]:
     return ['/pam'] if joints == 1 else [f'/j{k + 1}' for k in range(joints)]
 
 
-def params_file_for_any_namespace(folder: Path) -> Path:
-    """bringup.yaml with its /pam/<node> sections keyed /**/<node> (every namespace)."""
+def params_file(folder: Path, ports: dict[str, str]) -> Path:
+    """bringup.yaml with its /pam/<node> sections keyed /**/<node> (every namespace), and each
+    namespace's driver_node port (`ports`: namespace -> serial port) in a section of its own."""
     data = yaml.safe_load(default_params_file().read_text())
     out = {('/**/' + key.rsplit('/', 1)[-1] if key.startswith('/pam/') else key): section
            for key, section in data.items()}
+    out['/**/driver_node']['ros__parameters'].pop('port', None)
+    for ns, port in ports.items():
+        out[f'{ns}/driver_node'] = {'ros__parameters': {'port': port}}
     path = folder / 'stack_load_params.yaml'
     path.write_text(yaml.safe_dump(out, sort_keys=False))
     return path
@@ -67,15 +73,19 @@ def exe(name: str, package: str) -> str:
     return path
 
 
-def commands(mode: str, spaces: list[str], params: Path) -> list[tuple[str, list[str]]]:
-    """(label, argv) of every process of the mode."""
+def commands(mode: str, rig: str, spaces: list[str], params: Path,
+             ports: dict[str, str]) -> list[tuple[str, list[str]]]:
+    """(label, argv) of every process of the mode: the emulated boards first (driver path)."""
     ros = ['--ros-args', '--params-file', str(params)]
+    boards = [(f'{ns} pam-emulator', [exe('pam-emulator', 'pam_driver'), '--link', ports[ns],
+                                      '--initial-command', '5.5', '5.5'])
+              for ns in spaces if rig == 'driver']
     if mode == 'composed':
-        return [('pam_container', [exe('pam_container', 'pam_bringup'), '--namespace', *spaces,
-                                   *ros])]
-    return [(f'{ns}/{spec.name}', [exe(spec.name, spec.package), *ros[:1], '-r',
-                                   f'__ns:={ns}', *ros[1:]])
-            for ns in spaces for spec in STACK]
+        return [*boards, ('pam_container', [exe('pam_container', 'pam_bringup'), '--rig', rig,
+                                            '--namespace', *spaces, *ros])]
+    return [*boards, *[(f'{ns}/{spec.name}', [exe(spec.name, spec.package), *ros[:1], '-r',
+                                              f'__ns:={ns}', *ros[1:]])
+                       for ns in spaces for spec in stack_nodes(rig)]]
 
 
 def cpu_seconds(pid: int) -> float:
@@ -125,32 +135,45 @@ def counters(diag: Diagnostics, spaces: list[str]) -> dict[str, float]:
     return {'lost': lost, 'skipped': skipped}
 
 
-def run_mode(mode: str, spaces: list[str], params: Path, args, node, executor, diag) -> dict:
+def call(node, executor, service: str) -> None:
+    """Call a std_srvs/Trigger service; SystemExit if it is missing, silent or refuses."""
+    from std_srvs.srv import Trigger
+    client = node.create_client(Trigger, service)
+    if not client.wait_for_service(timeout_sec=10.0):
+        raise SystemExit(f'{service}: no such service')
+    future = client.call_async(Trigger.Request())
+    if not spin_until(executor, future.done, 10.0):
+        raise SystemExit(f'{service}: no answer')
+    if not future.result().success:
+        raise SystemExit(f'{service}: refused: {future.result().message}')
+    node.destroy_client(client)
+
+
+def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[str, str], args,
+             node, executor, diag) -> dict:
     env = dict(os.environ)
     procs = [(label, subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True))
-             for label, argv in commands(mode, spaces, params)]
+             for label, argv in commands(mode, rig, spaces, params, ports)]
     try:
-        sims = [f'{ns}/sim_node' for ns in spaces]
-        everyone = [f'{ns}/{spec.name}' for ns in spaces for spec in STACK]
+        rig_name = stack_nodes(rig)[0].name
+        sims = [f'{ns}/{rig_name}' for ns in spaces]
+        everyone = [f'{ns}/{spec.name}' for ns in spaces for spec in stack_nodes(rig)]
 
         def closed() -> bool:
             return all(diag.value(f'{ns}/pi_node', 'commands published') > 0 and
-                       diag.value(f'{ns}/sim_node', 'commands received') > 0 for ns in spaces)
+                       diag.value(f'{ns}/ukf_node', 'samples estimated') > 0 for ns in spaces)
         if not spin_until(executor, closed, READY_TIMEOUT):
             dead = [f'{label} (exit {p.poll()}): {p.stderr.read()[-400:]}'
                     for label, p in procs if p.poll() is not None]
             raise SystemExit(f'{mode}: the loops did not close within {READY_TIMEOUT:.0f} s; '
                              f'dead: {dead or "none"}')
+        if rig == 'driver':       # a watchdog trip while the stack started latches it safe
+            for sim in sims:
+                call(node, executor, f'{sim}/arm')
         spin_until(executor, lambda: False, args.warmup)
-        from std_srvs.srv import Trigger
         for sim in sims:
-            client = node.create_client(Trigger, f'{sim}/reset_statistics')
-            if not client.wait_for_service(timeout_sec=10.0):
-                raise SystemExit(f'{sim}/reset_statistics: no such service')
-            future = client.call_async(Trigger.Request())
-            if not spin_until(executor, future.done, 10.0):
-                raise SystemExit(f'{sim}/reset_statistics: no answer')
+            call(node, executor, f'{sim}/reset_statistics')
         t0 = time.monotonic()
         if not spin_until(executor, lambda: diag.fresh(everyone, t0), 10.0):
             raise SystemExit(f'{mode}: no fresh /diagnostics of every node')
@@ -192,9 +215,10 @@ def run_mode(mode: str, spaces: list[str], params: Path, args, node, executor, d
                 p.wait()
 
 
-def print_results(results: list[dict], joints: int, hogs: int, duration: float) -> None:
-    print(f'\n{joints} joint(s) at 1 kHz, {hogs} CPU-bound process(es) beside, window '
-          f'{duration:g} s; latency at the rig (worst joint), CPU in % of one core')
+def print_results(results: list[dict], joints: int, hogs: int, duration: float,
+                  rig: str) -> None:
+    print(f'\n{joints} joint(s) at 1 kHz ({rig} rig), {hogs} CPU-bound process(es) beside, '
+          f'window {duration:g} s; latency at the rig (worst joint), CPU in % of one core')
     print(f"{'mode':<10} {'procs':>5} {'CPU %':>7} {'p50 ms':>7} {'p99 ms':>7} {'p99.9 ms':>8} "
           f"{'max ms':>7} {'late %':>7} {'lost':>5} {'skipped':>7} {'commands':>9}")
     for r in results:
@@ -216,6 +240,8 @@ def main(argv=None) -> int:
                         help='N CPU-bound processes beside the stack')
     parser.add_argument('--modes', nargs='+', default=['separate', 'composed'],
                         choices=['separate', 'composed'])
+    parser.add_argument('--rig', choices=['sim', 'driver'], default='sim',
+                        help='sim: sim_node; driver: pam-emulator + driver_node (default sim)')
     args = parser.parse_args(argv)
     if args.joints < 1 or args.duration <= 0 or args.warmup < 0 or args.hog < 0:
         parser.error('--joints >= 1, --duration > 0, --warmup >= 0, --hog >= 0')
@@ -233,10 +259,12 @@ def main(argv=None) -> int:
     results = []
     try:
         with tempfile.TemporaryDirectory() as folder:
-            params = params_file_for_any_namespace(Path(folder))
+            ports = {ns: str(Path(folder) / f'daq{k}') for k, ns in enumerate(spaces)}
+            params = params_file(Path(folder), ports)
             for mode in args.modes:
                 diag.latest.clear()
-                results.append(run_mode(mode, spaces, params, args, node, executor, diag))
+                results.append(run_mode(mode, args.rig, spaces, params, ports, args, node,
+                                        executor, diag))
                 print(f'{mode}: done', flush=True)
     finally:
         for h in hogs:
@@ -244,7 +272,7 @@ def main(argv=None) -> int:
             h.wait()
         node.destroy_node()
         rclpy.try_shutdown()
-    print_results(results, args.joints, args.hog, args.duration)
+    print_results(results, args.joints, args.hog, args.duration, args.rig)
     return 0
 
 
