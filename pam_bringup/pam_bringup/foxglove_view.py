@@ -158,7 +158,6 @@ class FoxgloveView(Node):
         self.values = values = parameter_values(self, PARAMETERS)
         host = check_host(values['host'])
         served = select_topics(values['topics'], self.get_namespace())
-        self.finished = Future()        # done only when the server cannot start (exit code 1)
         self.server = None
         self.counts: dict[str, int] = {}
         logger = self.get_logger()
@@ -173,6 +172,9 @@ class FoxgloveView(Node):
         except RuntimeError as exc:
             problem = str(exc).removeprefix('FoxgloveError: ')
             self.get_logger().error(f"cannot serve on {host}:{values['port']}: {problem}")
+            # a finished node (pam_common.executors.run_nodes): it ends at once, finish() gives
+            # the exit code; a node that serves has no `finished` (an ordinary node)
+            self.finished = Future()
             self.finished.set_result(1)
             return
         self.url = url(host, self.server.port)
@@ -216,8 +218,8 @@ class FoxgloveView(Node):
         return OK, f'serving on {self.url}', values
 
     def finish(self) -> int:
-        """Exit code: 1 when the server could not start, else 0 (stopped by Ctrl-C/SIGTERM)."""
-        return self.finished.result() if self.finished.done() else 0
+        """The exit code when the server could not start (run_nodes calls it only then)."""
+        return self.finished.result()
 
     def stop_server(self) -> None:
         if self.server is not None:
