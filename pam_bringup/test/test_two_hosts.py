@@ -18,12 +18,13 @@ loop, shown three ways:
   (pressures, joint_measured, joint_states) and B at least the 1 kHz valve commands
   (SAMPLE_BYTES each).
 
-The same run on one host (every node in the machine's own namespace, default transports with
-shared memory, LOCALHOST discovery: how the other tests run it) gives the reference figures: for
-the two holds begun and ended by a reference step (COMPARED), the steady-state error and the
-settling time of tracking_report (pam_controller.step_metrics) must agree within STEADY_TOLERANCE
-and SETTLING_TOLERANCE. The two runs are sequential, on one ROS domain claimed for this module
-(pam_common.testing.ros_domain).
+The same run on one host (every node in namespace B, the link down: loopback and shared memory,
+default transports, LOCALHOST discovery, as the other tests run it, out of reach of anything else
+on the machine's ROS domain) gives the reference figures: for the two holds begun and ended by a
+reference step (COMPARED), the steady-state error and the settling time of tracking_report
+(pam_controller.step_metrics) must agree within STEADY_TOLERANCE and SETTLING_TOLERANCE. The two
+runs are sequential, on one ROS domain claimed for this module (pam_common.testing.ros_domain).
+tracking_report runs at nice -10 and must have every sample (see MEASURE_NICE).
 
 Needs root and `ip netns` (skipped otherwise, with the reason); the namespaces are deleted, and
 every process in them killed, even when the test fails or is interrupted.
@@ -31,6 +32,7 @@ every process in them killed, even when the test fails or is interrupted.
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -41,7 +43,7 @@ import pytest
 from pam_bringup.stack import node_argv
 from pam_common.testing import STARTUP_TIMEOUT, NodeProcess, child_env, installed_config
 from pam_common.topics import DEFAULT_NAMESPACE, JOINT_MEASURED, VALVE_COMMAND
-from two_hosts_support import WATCH_TIMEOUT_CODE, TwoHosts, netns_unavailable
+from two_hosts_support import WATCH_TIMEOUT_CODE, TwoHosts, netns_unavailable, remove_stale
 
 pytestmark = pytest.mark.skipif(netns_unavailable() is not None,
                                 reason=str(netns_unavailable()))
@@ -53,6 +55,10 @@ COMPARED = (-18.36, 12.53)  # deg: the holds compared, both begun and ended by a
 NEGATIVE_WAIT = 3.0        # s a node in B waits for sim_node's topics with the link down
 STEADY_TOLERANCE = 0.1     # percentage points (of the 40 deg range) between the two setups
 SETTLING_TOLERANCE = 0.1   # s (the reference step lands on the loop a few samples apart)
+RATE = 1000.0              # Hz, the rig's sample rate (config/bringup.yaml)
+#: tracking_report's niceness: it must not be starved of CPU for the 100 ms its queues hold
+#: (pam_common.qos.SAMPLE_QOS) by the machine's other work, or it loses samples.
+MEASURE_NICE = '-10'
 SAMPLE_BYTES = 60          # a lower bound of one sample's RTPS message on the wire (bytes)
 #: Lockstep: the plant steps when the command of its last sample arrives (simulated time, from
 #: /clock for reference_node; pi_node's wall-clock feedback timeout out of the way, as in
@@ -74,20 +80,23 @@ def two_hosts_env(domain: int) -> dict:
 
 
 class Hosts:
-    """Starts nodes on host 'a' or 'b': in the namespaces of `hosts`, or (hosts None) both in
-    the machine's own namespace, the one-host setup. Every process is stopped by close()."""
+    """Starts nodes on host 'a' or 'b', each side in the namespace `sides[side]` of `hosts` ('a'
+    and 'b': two hosts; 'b' and 'b': one host). Every process is stopped by close()."""
 
-    def __init__(self, hosts: TwoHosts | None, env: dict, cwd: Path, request):
-        self.hosts, self.env, self.cwd, self.request = hosts, env, cwd, request
+    def __init__(self, hosts: TwoHosts, sides: dict, env: dict, cwd: Path, request):
+        self.hosts, self.sides, self.env, self.cwd, self.request = hosts, sides, env, cwd, request
         self.started: list[NodeProcess] = []
 
     def prefix(self, side: str) -> list[str]:
-        return self.hosts.argv(side, []) if self.hosts else []
+        return self.hosts.argv(self.sides[side], [])
 
-    def start(self, side: str, name: str, package: str, *args: str) -> NodeProcess:
+    def start(self, side: str, name: str, package: str, *args: str,
+              nice: bool = False) -> NodeProcess:
+        """`name` with the stack's params file and `args`; `nice`: at nice -10 (MEASURE_NICE)."""
         argv = node_argv(name, DEFAULT_NAMESPACE, installed_config('bringup.yaml', 'pam_bringup'))
+        prefix = [*self.prefix(side), *(['nice', '-n', MEASURE_NICE] if nice else [])]
         process = NodeProcess(name, package, [*argv[1:], *args], self.env, self.cwd,
-                              prefix=self.prefix(side))
+                              prefix=prefix)
         self.started.append(process)
         return process
 
@@ -116,12 +125,18 @@ def closed_loop_figures(hosts: Hosts) -> tuple[list[dict], str]:
     ready = hosts.watch('b', STARTUP_TIMEOUT, LOOP_TOPICS)
     assert ready.returncode == 0, f'the loop did not close:\n{ready.stdout}{ready.stderr}'
     report = hosts.start('b', 'tracking_report', 'pam_bringup', '-p', f'duration:={RECORD}',
-                         '-p', 'startup_timeout:=30.0')
+                         '-p', 'startup_timeout:=30.0', nice=True)
     hosts.start('b', 'reference_node', 'pam_controller', '-p', f'hold:={HOLD}',
                 '-p', f'duration:={PROFILE}', '-p', 'repeat:=true', *LOCKSTEP['reference_node'])
     code = report.wait_exit(RECORD + STARTUP_TIMEOUT)
     out = report.stdout
     assert code == 0, f'tracking_report exit code {code}:\n{out}\n{report.stderr}'
+    samples = int(re.search(r'(\d+) samples', out).group(1))
+    assert samples >= RECORD * RATE, (
+        f'tracking_report lost {RECORD * RATE + 1 - samples:.0f} of {RECORD * RATE + 1:.0f} '
+        f'samples (starved of CPU for more than its queue of 100 samples; load average '
+        f'{os.getloadavg()}): its figures would be wrong (pam_controller.step_metrics counts '
+        f'time in samples)\n{out}')
     rows = [m.groupdict() for m in map(ROW.match, out.splitlines()) if m]
     figures = {float(row['reference']): {k: float(v) for k, v in row.items()} for row in rows}
     assert set(COMPARED) <= set(figures), out
@@ -134,6 +149,7 @@ def two_hosts():
     unavailable = netns_unavailable()
     if unavailable:
         pytest.skip(unavailable)
+    remove_stale()
     hosts = TwoHosts()
     with hosts:
         yield hosts
@@ -147,7 +163,7 @@ def test_closed_loop_across_two_hosts_matches_one_host(two_hosts, ros_domain, tm
                                 text=True, check=True).stdout.splitlines()
         assert len(routes) == 1 and routes[0].startswith('10.231.0.0/24 dev '), routes
 
-    apart = Hosts(two_hosts, two_hosts_env(ros_domain), tmp_path, request)
+    apart = Hosts(two_hosts, {'a': 'a', 'b': 'b'}, two_hosts_env(ros_domain), tmp_path, request)
     try:
         # negative control: the link down, a node in B never sees sim_node's samples
         two_hosts.set_link(False)
@@ -164,7 +180,9 @@ def test_closed_loop_across_two_hosts_matches_one_host(two_hosts, ros_domain, tm
     finally:
         apart.close('two hosts:')
 
-    one = Hosts(None, child_env(ros_domain), tmp_path, request)
+    # one host: every node in B, the link down (nothing else on the domain can reach them)
+    two_hosts.set_link(False)
+    one = Hosts(two_hosts, {'a': 'b', 'b': 'b'}, child_env(ros_domain), tmp_path, request)
     try:
         alone, alone_out = closed_loop_figures(one)
     finally:

@@ -5,7 +5,9 @@ TwoHosts (a context manager; root and `ip netns` needed) makes namespaces `pam2h
 `pam2h_b_<pid>`, a veth pair `p2ha<pid>` / `p2hb<pid>` with 10.231.0.1/24 and 10.231.0.2/24 (the
 subnet exists only inside the two namespaces, so it cannot clash with the machine's own
 networks), `lo` up in both. On exit it kills whatever still runs in them (`ip netns pids`) and
-deletes them (the veth pair goes with them), also after a failure or Ctrl-C.
+deletes them (the veth pair goes with them), also after a failure or Ctrl-C; namespaces left by
+a test process that was killed outright (SIGKILL: no cleanup runs) are removed by the next run
+(remove_stale).
 
 Run as a script, inside a namespace, it is the test's probe there (the machine's own namespace has
 no route to the two):
@@ -48,6 +50,19 @@ def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
     if check and done.returncode != 0:
         raise RuntimeError(f'ip {" ".join(args)}: {done.stderr.strip()}')
     return done
+
+
+def remove_stale() -> list[str]:
+    """Delete the namespaces (and kill what runs in them) of test processes that no longer exist:
+    `pam2h_a_<pid>`, `pam2h_b_<pid>` with no process <pid>. Their names, sorted."""
+    removed = []
+    for name in _ip('netns', 'list', check=False).stdout.split():
+        parts = name.split('_')
+        if (len(parts) == 3 and parts[0] == 'pam2h' and parts[2].isdigit()
+                and not os.path.exists(f'/proc/{parts[2]}')):
+            TwoHosts(parts[2]).close()
+            removed.append(name)
+    return sorted(removed)
 
 
 class TwoHosts:
@@ -100,7 +115,7 @@ class TwoHosts:
 
     def close(self) -> None:
         """Kill what still runs in the namespaces (SIGKILL), then delete them."""
-        present = _ip('netns', 'list', check=False).stdout
+        present = _ip('netns', 'list', check=False).stdout.split()
         for side in 'ab':
             name = self.names[side]
             if name not in present:
@@ -116,8 +131,8 @@ class TwoHosts:
                         pass
                 time.sleep(0.05)
             _ip('netns', 'delete', name, check=False)
-        if self.devices['a'] in _ip('link', 'show', check=False).stdout:   # never moved
-            _ip('link', 'delete', self.devices['a'], check=False)
+        if _ip('link', 'show', 'dev', self.devices['a'], check=False).returncode == 0:
+            _ip('link', 'delete', self.devices['a'], check=False)   # made, never moved
 
     def exists(self) -> bool:
         present = _ip('netns', 'list', check=False).stdout.split()
