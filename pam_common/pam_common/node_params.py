@@ -27,7 +27,7 @@ class ParamSpec:
 
     name: str
     default: Any
-    type_name: str          # 'string', 'double', 'integer', 'bool', 'double[]'
+    type_name: str          # 'string', 'double', 'integer', 'bool', 'double[]', 'integer[]'
     unit: str
     description: str
     choices: tuple = ()
@@ -204,7 +204,8 @@ def descriptor(spec: ParamSpec):
              'double': ParameterType.PARAMETER_DOUBLE,
              'integer': ParameterType.PARAMETER_INTEGER,
              'bool': ParameterType.PARAMETER_BOOL,
-             'double[]': ParameterType.PARAMETER_DOUBLE_ARRAY}
+             'double[]': ParameterType.PARAMETER_DOUBLE_ARRAY,
+             'integer[]': ParameterType.PARAMETER_INTEGER_ARRAY}
     description = spec.description + (f' Unit: {spec.unit}.' if spec.unit else '')
     result = ParameterDescriptor(name=spec.name, type=types[spec.type_name],
                                  description=description, read_only=spec.read_only)
@@ -224,6 +225,8 @@ def _type_hint(spec: ParamSpec, value) -> str:
         return f' (write {value}.0)'
     if spec.type_name == 'double[]':
         return ' (write every element with a decimal point, e.g. [0.0, 0.0, 450000.0, 450000.0])'
+    if spec.type_name == 'integer[]':
+        return ' (write a list of integers, e.g. [0] or [0, 1])'
     return ''
 
 
@@ -250,6 +253,10 @@ def unknown_parameter_warning(name: str, specs: Sequence[ParamSpec], prog: str) 
     return f"ignoring unknown parameter '{name}'{hint} (see {prog} --help)"
 
 
+#: The array types and their rclpy Parameter.Type names (an empty default is declared by type).
+ARRAY_TYPES = {'double[]': 'DOUBLE_ARRAY', 'integer[]': 'INTEGER_ARRAY'}
+
+
 def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """Declare every spec on the node with its descriptor and return the values; call it once,
     with the node's whole table.
@@ -266,11 +273,12 @@ def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     values = {}
     for spec in specs:
         # an empty list has no element type: declare such a parameter by its type instead
-        default = (Parameter.Type.DOUBLE_ARRAY
-                   if spec.type_name == 'double[]' and not spec.default else spec.default)
+        array_type = ARRAY_TYPES.get(spec.type_name)
+        default = (getattr(Parameter.Type, array_type)
+                   if array_type and not spec.default else spec.default)
         try:
             value = node.declare_parameter(spec.name, default, descriptor(spec)).value
-            values[spec.name] = [] if value is None and spec.type_name == 'double[]' else value
+            values[spec.name] = [] if value is None and array_type else value
         except rclpy.exceptions.InvalidParameterTypeException as exc:
             value = override_value(node, spec.name)
             raise ConfigError(f"parameter '{spec.name}': expected {spec.type_name}, got "

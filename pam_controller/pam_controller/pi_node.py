@@ -47,6 +47,7 @@ from pam_common.node_params import (
 )
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
+from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeKnobs
 from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
@@ -110,6 +111,7 @@ PARAMETERS = (
     ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),
     WARN_RATIO_PARAM,
     HARDWARE_ID_PARAM,
+    *REALTIME_PARAMS,
 )
 SUMMARY = [
     'Sensor-less PI controller (pam_controller): u1 = beta + Kp e + I, u2 = beta - Kp e - I on',
@@ -146,6 +148,9 @@ class PiNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self.values = parameter_values(self, PARAMETERS)
         self.loop = build_loop(self.values)
+        # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
+        self.realtime = RealtimeKnobs(self.get_logger(), self.values)
+        self.realtime.apply_to_executor()
         self.gaps = SampleGaps()              # of the estimates' sample counter
         self.logs = ThrottledLogs(self.get_logger(), 1.0)
         self._log_reference = self.logs.new()
@@ -173,6 +178,7 @@ class PiNode(Node):
         self.diagnostics.add_check(
             lambda: self.gaps.report(self.values['lost_samples_warn_ratio']))
         self.diagnostics.add_check(self.logs.report)
+        self.diagnostics.add_check(self.realtime.report)
         self.create_timer(0.05, self._watchdog)
         self._last_feedback = None            # monotonic time of the last feedback
         self._stale = False

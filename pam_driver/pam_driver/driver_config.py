@@ -20,6 +20,7 @@ from pam_common.node_params import (
     usage_text as _usage_text,
     wants_help,
 )
+from pam_common.realtime_knobs import REALTIME_PARAMS
 
 __all__ = ['PARAMETERS', 'ConfigError', 'build_config', 'usage_text', 'wants_help']
 
@@ -62,6 +63,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
                         "The board's sample rate is known at the handshake: above it, every "
                         'sample is published (a warning).'),
     HARDWARE_ID_PARAM,
+    *REALTIME_PARAMS,
     ParamSpec('inject_internal_error', 0.0, 'double', 's',
               'Fault injection for tests: raise an internal error in the serial thread this long '
               'after the first valve_command reached the valves, once (exercises the safe output '

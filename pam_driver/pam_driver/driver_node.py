@@ -59,6 +59,7 @@ from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS, SAMPLE_QOS
+from pam_common.realtime_knobs import RealtimeKnobs
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import RateStatistics
@@ -99,6 +100,9 @@ class DriverNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self.config = parameter_values(self, PARAMETERS, check=build_config)
         self.cal = self.config['calibration']
+        # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
+        self._realtime = RealtimeKnobs(self.get_logger(), self.config)
+        self._realtime.apply_to_executor()
         self._frame_id = self.config['frame_id']
         self._stop = threading.Event()
         self._io_lock = threading.Lock()     # the serial object and writes
@@ -155,6 +159,7 @@ class DriverNode(Node):
                                                  self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
         self._diagnostics.add_check(self._logs.report)
+        self._diagnostics.add_check(self._realtime.report)
         self.get_logger().info(
             f"port {self.config['port']} at {self.config['baud']} baud, calibration "
             f'{self.cal.source}; watchdog {self.config["watchdog_timeout"] * 1e3:g} ms, safe '
@@ -258,6 +263,7 @@ class DriverNode(Node):
 
     # ------------------------------------------------------------------ serial thread
     def _reader_loop(self) -> None:
+        self._realtime.apply_to_thread('driver_reader')
         import serial
         first, longest = self.config['reconnect_backoff']
         backoff = first

@@ -29,6 +29,7 @@ from pam_common.node_params import (
     usage_text as _usage_text,
     wants_help,
 )
+from pam_common.realtime_knobs import REALTIME_PARAMS
 from pam_model.model_choices import ForceModel, FrictionLaw
 
 __all__ = [
@@ -112,6 +113,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'frame_id of the published headers.'),
     *joint_state_params('joint_states', 'the true joint, as joint_measured'),
     HARDWARE_ID_PARAM,
+    *REALTIME_PARAMS,
 )
 
 PARAMETERS_BY_NAME = {spec.name: spec for spec in PARAMETERS}

@@ -100,6 +100,7 @@ from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
+from pam_common.realtime_knobs import RealtimeKnobs
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
@@ -165,6 +166,9 @@ class SimNode(Node):
                                       'publish_clock)')
             self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, False)])
 
+        # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
+        self._realtime = RealtimeKnobs(self.get_logger(), values)
+        self._realtime.apply_to_executor()
         self._rig = self.config.make_rig()
         warm_up = self.config.make_rig()  # load the compiled model now, not at the 2nd sample
         warm_up.step()
@@ -195,6 +199,7 @@ class SimNode(Node):
                                                  self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
         self._diagnostics.add_check(self._logs.report)
+        self._diagnostics.add_check(self._realtime.report)
         for line in self.config.summary:
             self.get_logger().info(line)
         self.get_logger().info(
@@ -276,6 +281,7 @@ class SimNode(Node):
             self._samples_published += 1
 
     def _realtime_loop(self) -> None:
+        self._realtime.apply_to_thread('sim_node_sampler')
         period = 1.0 / self.config.rate
         clock = self.get_clock()
         start = time.monotonic()

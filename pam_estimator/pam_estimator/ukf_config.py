@@ -19,6 +19,7 @@ from pam_common.node_params import (
     merge_overrides,
     usage_text as _usage_text,
 )
+from pam_common.realtime_knobs import REALTIME_PARAMS
 from pam_common.sample_gaps import WARN_RATIO_PARAM
 from pam_model.model_choices import ForceModel, FrictionLaw
 
@@ -69,6 +70,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published estimates.'),
     *joint_state_params('estimate/joint_states', 'the estimate: angle, angular velocity, torque'),
     HARDWARE_ID_PARAM,
+    *REALTIME_PARAMS,
 )
 
 

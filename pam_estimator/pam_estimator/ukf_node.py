@@ -43,6 +43,7 @@ from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
+from pam_common.realtime_knobs import RealtimeKnobs
 from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
@@ -69,6 +70,9 @@ class UkfNode(Node):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
         config = parameter_values(self, PARAMETERS, check=build_config)
+        # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
+        self.realtime = RealtimeKnobs(self.get_logger(), config.values)
+        self.realtime.apply_to_executor()
         self.core = EstimatorCore(config.ukf, config.values['initial_command'])
         self.frame_id = config.values['frame_id']
         self.stale_timeout = config.values['stale_timeout']
@@ -97,6 +101,7 @@ class UkfNode(Node):
         self.diagnostics.add_check(self.guard.report)
         self.diagnostics.add_check(lambda: self.gaps.report(lost_warn_ratio))
         self.diagnostics.add_check(self.logs.report)
+        self.diagnostics.add_check(self.realtime.report)
         self.get_logger().info(
             f'estimating: {self.resolve_topic_name(PRESSURES)} + '
             f'{self.resolve_topic_name(VALVE_COMMAND)} -> {self.resolve_topic_name(ESTIMATE)}'
