@@ -3,19 +3,26 @@
 Starts, in namespace /pam, the nodes of pam_bringup.stack (the node list pam-bringup starts too):
 the rig (sim_node, or driver_node with rig:=driver), ukf_node, reference_node and pi_node, all
 with one params file (default: this package's config/bringup.yaml, one section per node keyed
-/pam/<node>). Same stack as `pam-bringup`, which needs no launch package. Examples:
+/pam/<node>). With namespace:=joint2 the nodes get a copy of the file whose /pam sections are
+re-keyed to /joint2 (pam_bringup.params_namespace.stack_params, as pam-bringup --namespace; the
+copy is in a directory removed when the launch exits; a section of the file for /joint2 itself
+wins). Same stack as `pam-bringup`, which needs no launch package. Examples:
 
     ros2 launch pam_bringup pam_sim.launch.py
     ros2 launch pam_bringup pam_sim.launch.py params_file:=/path/my.yaml use_controller:=false
+    ros2 launch pam_bringup pam_sim.launch.py namespace:=joint2
 """
 
+import launch.logging
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
+from launch_ros.utilities import make_namespace_absolute, prefix_namespace
 
+from pam_bringup.params_namespace import run_directory, stack_params
 from pam_bringup.stack import (
     CONTROLLER,
     DEFAULT_NAMESPACE,
@@ -28,15 +35,26 @@ from pam_bringup.stack import (
 
 def stack_actions(context):
     """A Node action per node of pam_bringup.stack.stack_nodes for this launch's rig,
-    use_reference and use_controller."""
+    use_reference and use_controller, in its namespace (relative: under an including launch
+    file's PushRosNamespace, as Node itself resolves it), each with the params file
+    stack_params gives for that namespace."""
     nodes = stack_nodes(LaunchConfiguration('rig').perform(context),
                         reference=IfCondition(LaunchConfiguration('use_reference'))
                         .evaluate(context),
                         controller=IfCondition(LaunchConfiguration('use_controller'))
                         .evaluate(context))
+    namespace = make_namespace_absolute(prefix_namespace(
+        context.launch_configurations.get('ros_namespace'),
+        LaunchConfiguration('namespace').perform(context)))
+    params = stack_params(LaunchConfiguration('params_file').perform(context), namespace,
+                          [node.name for node in nodes], run_directory('pam_sim_launch_'))
+    logger = launch.logging.get_logger('pam_sim.launch')
+    if params.moved:
+        logger.info(params.describe())
+    for warning in params.warnings:
+        logger.warning(warning)
     return [Node(package=node.package, executable=node.name, name=node.name,
-                 namespace=LaunchConfiguration('namespace'),
-                 parameters=[LaunchConfiguration('params_file')], output='screen',
+                 namespace=namespace, parameters=[str(params.file)], output='screen',
                  emulate_tty=True)
             for node in nodes]
 
@@ -55,7 +73,8 @@ def generate_launch_description():
             description=f'The rig: {rigs}.'),
         DeclareLaunchArgument(
             'namespace', default_value=DEFAULT_NAMESPACE.lstrip('/'),
-            description='Namespace of every node (the params file keys must match it).'),
+            description=f'Namespace of every node; the params file\'s {DEFAULT_NAMESPACE} '
+                        'sections apply to it (a section for the namespace itself wins).'),
         DeclareLaunchArgument(
             'use_controller', default_value='true', choices=['true', 'false'],
             description=f'Start the controller ({CONTROLLER.name}).'),

@@ -7,10 +7,12 @@ reference_node; pi_node), each as
     <exe> --ros-args -r __ns:=<namespace> --params-file <file>
 
 (the same standard ROS 2 params file for every node: one section per node, keyed by the node's
-full name, e.g. `/pam/sim_node:`; `/**:` applies to every node; pam_bringup.params_sections
-warns about a node no section is for). pam_bringup.supervisor runs them: each in a process group
-of its own, every output line prefixed with `[node_name]` on our stdout (and, with --log-dir, the
-raw line in DIR/<node>.log).
+full name, e.g. `/pam/sim_node:`; `/**:` applies to every node). With --namespace other than
+/pam the nodes get a copy of the file whose /pam sections are re-keyed to the namespace
+(pam_bringup.params_namespace, in a directory of this run removed at exit); a node no section is
+for is warned about (pam_bringup.params_sections). pam_bringup.supervisor runs them: each in a
+process group of its own, every output line prefixed with `[node_name]` on our stdout (and, with
+--log-dir, the raw line in DIR/<node>.log).
 
 Stopping: on SIGINT / SIGTERM / SIGHUP (Ctrl-C) or at the end of --duration every child gets
 SIGINT, SIGTERM after 5 s, its threads' stacks (SIGUSR1) and SIGKILL after 10 s
@@ -31,15 +33,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 from pam_common.params_files import ros_args_problem
 
 from .arming import DriverArmer
-from .params_sections import section_keys, section_warning
+from .params_namespace import StackParams, stack_params
 from .stack import (
     DEFAULT_NAMESPACE,
     RIGS,
@@ -48,6 +50,7 @@ from .stack import (
     locate_executables,
     needs_arming,
     node_argv,
+    normal_namespace,
     stack_nodes,
 )
 from .supervisor import Child, Output, Supervisor, child_environment
@@ -66,7 +69,9 @@ def parse_args(argv):
                '`--ros-args --params-file FILE`: one section per node keyed by its full name '
                '(/pam/sim_node:, /pam/ukf_node:, /pam/pi_node:, /pam/reference_node:; '
                '/**/NAME: for any namespace; /**: for every node). A bare `sim_node:` key '
-               'means /sim_node and does NOT apply under /pam. Exit codes: 0 requested stop '
+               'means /sim_node and does NOT apply under /pam. With --namespace NS the /pam '
+               'sections apply to NS (the nodes get a copy of the file re-keyed to NS; a '
+               'section of the file for NS itself wins). Exit codes: 0 requested stop '
                'with every node exiting cleanly, 1 a node died or did not stop cleanly, 2 usage '
                'or set-up error. Example: pam-bringup --no-controller --no-reference '
                '--duration 30 --domain-id 42 --log-dir out/logs')
@@ -89,7 +94,9 @@ def parse_args(argv):
     parser.add_argument('--domain-id', type=int, metavar='N',
                         help='ROS_DOMAIN_ID of the nodes (default: inherited)')
     parser.add_argument('--namespace', default=DEFAULT_NAMESPACE, metavar='NS',
-                        help=f'namespace of every node, -r __ns:=NS (default {DEFAULT_NAMESPACE})')
+                        help=f'namespace of every node, -r __ns:=NS (default '
+                             f'{DEFAULT_NAMESPACE}); the params file\'s {DEFAULT_NAMESPACE} '
+                             'sections apply to it')
     parser.add_argument('--log-dir', type=Path, metavar='DIR',
                         help="also write each node's raw output to DIR/<node>.log")
     parser.add_argument('--no-colour', '--no-color', dest='colour', action='store_false',
@@ -100,14 +107,10 @@ def parse_args(argv):
         parser.error(f'--duration must be > 0 s, got {args.duration:g}')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         parser.error(f'--domain-id must be in 0..232, got {args.domain_id}')
-    ns = args.namespace.strip()
-    if not ns.startswith('/'):
-        ns = '/' + ns
-    if ns != '/':
-        ns = ns.rstrip('/')
-    if not re.fullmatch(r'/|(/[A-Za-z_][A-Za-z0-9_]*)+', ns):
+    try:
+        args.namespace = normal_namespace(args.namespace)
+    except ValueError:
         parser.error(f'--namespace {args.namespace!r} is not a valid ROS namespace')
-    args.namespace = ns
     return args
 
 
@@ -128,14 +131,20 @@ def main(argv=None) -> int:
         missing = not (args.params_file or params_file.exists())
         return error(problem + (' (run `make setup`, or pass --params-file)' if missing else ''))
     try:
-        keys = section_keys(params_file)
-    except ValueError as exc:
-        return error(str(exc))
-    try:
         executables = locate_executables(nodes)
     except MissingExecutable as exc:
         return error(str(exc))
+    with tempfile.TemporaryDirectory(prefix=f'{PROG}-') as run_dir:
+        try:
+            params = stack_params(params_file, args.namespace, [n.name for n in nodes],
+                                  Path(run_dir))
+        except ValueError as exc:
+            return error(str(exc))
+        return run(args, nodes, executables, params)
 
+
+def run(args, nodes, executables: dict[str, str], params: StackParams) -> int:
+    """Start the nodes with `params` and supervise them until the stop; the exit code."""
     log_dir = None
     if args.log_dir is not None:
         log_dir = args.log_dir.expanduser().resolve()
@@ -147,18 +156,16 @@ def main(argv=None) -> int:
     colour = args.colour and sys.stdout.isatty() and 'NO_COLOR' not in os.environ
     output = Output(PROG, [n.name for n in nodes], colour)
     env = child_environment(args.domain_id, colour)
-    children = [Child(node.name, node_argv(executables[node.name], args.namespace, params_file),
+    children = [Child(node.name, node_argv(executables[node.name], args.namespace, params.file),
                       node.role) for node in nodes]
     supervisor = Supervisor(children, env, output, log_dir)
 
     output.say(f"ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '(unset: 0)')}, namespace "
-               f"{args.namespace}, params file {params_file}"
+               f"{args.namespace}, {params.describe()}"
                + (f', logs in {log_dir}' if log_dir else '')
                + (f', duration {args.duration:g} s' if args.duration else ', Ctrl-C to stop'))
-    for node in nodes:
-        warning = section_warning(args.namespace.rstrip('/') + '/' + node.name, keys)
-        if warning is not None:
-            output.say(warning)
+    for warning in params.warnings:
+        output.say(warning)
 
     supervisor.install_signal_handlers()
     try:
