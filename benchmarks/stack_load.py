@@ -19,6 +19,10 @@ ROS domain of their own. After --warmup s the rigs' latency statistics are reset
 plant simulated) and driver_node, armed once the loop runs; the latency is then timed by
 driver_node (the host's end of the serial line). --hog N starts N CPU-bound processes
 (`while True: pass`) beside the stack first.
+Modes separate+rt and composed+rt are the same with the real-time knobs on every node (-p
+thread_priority:=--realtime, default 80; cpu_affinity:=--rt-cpus; lock_memory with
+--rt-lock-memory; docs/realtime.md); with --hog and no --modes, composed+rt runs too, so the
+figures with and without the knobs come from one run.
 The only extra load is this script's /diagnostics subscription (about 1 Hz per node).
 
     .venv/bin/python benchmarks/stack_load.py [--joints 1] [--duration 20] [--hog 0] [--rig sim]
@@ -73,10 +77,22 @@ def exe(name: str, package: str) -> str:
     return path
 
 
+def knob_args(mode: str, args) -> list[str]:
+    """The ROS arguments of the real-time knobs for a '+rt' mode (none for the others)."""
+    if not mode.endswith('+rt'):
+        return []
+    knobs = ['-p', f'thread_priority:={args.realtime}']
+    if args.rt_cpus:
+        knobs += ['-p', f"cpu_affinity:=[{', '.join(str(c) for c in args.rt_cpus)}]"]
+    return knobs + (['-p', 'lock_memory:=true'] if args.rt_lock_memory else [])
+
+
 def commands(mode: str, rig: str, spaces: list[str], params: Path,
-             ports: dict[str, str]) -> list[tuple[str, list[str]]]:
-    """(label, argv) of every process of the mode: the emulated boards first (driver path)."""
-    ros = ['--ros-args', '--params-file', str(params)]
+             ports: dict[str, str], knobs: list[str] = ()) -> list[tuple[str, list[str]]]:
+    """(label, argv) of every process of the mode (its knobs: knob_args): the emulated boards
+    first (driver path)."""
+    ros = ['--ros-args', '--params-file', str(params), *knobs]
+    mode = mode.removesuffix('+rt')
     boards = [(f'{ns} pam-emulator', [exe('pam-emulator', 'pam_driver'), '--link', ports[ns],
                                       '--initial-command', '5.5', '5.5'])
               for ns in spaces if rig == 'driver']
@@ -154,7 +170,8 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
     env = dict(os.environ)
     procs = [(label, subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True))
-             for label, argv in commands(mode, rig, spaces, params, ports)]
+             for label, argv in commands(mode, rig, spaces, params, ports,
+                                         knob_args(mode, args))]
     try:
         rig_name = stack_nodes(rig)[0].name
         sims = [f'{ns}/{rig_name}' for ns in spaces]
@@ -194,6 +211,10 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
         def worst(key: str) -> float:
             return max(diag.value(s, key) for s in sims)
 
+        if mode.endswith('+rt'):    # what the knobs came to (a refusal is a WARN status)
+            for s in sims:
+                print(f"  {mode} {s}: executor thread "
+                      f"{diag.latest[s][1].get('executor thread', '?')}", flush=True)
         timed = sum(diag.value(s, 'commands timed') for s in sims)
         late = sum(diag.value(s, 'commands after the next sample') for s in sims)
         return {
@@ -219,10 +240,10 @@ def print_results(results: list[dict], joints: int, hogs: int, duration: float,
                   rig: str) -> None:
     print(f'\n{joints} joint(s) at 1 kHz ({rig} rig), {hogs} CPU-bound process(es) beside, '
           f'window {duration:g} s; latency at the rig (worst joint), CPU in % of one core')
-    print(f"{'mode':<10} {'procs':>5} {'CPU %':>7} {'p50 ms':>7} {'p99 ms':>7} {'p99.9 ms':>8} "
+    print(f"{'mode':<11} {'procs':>5} {'CPU %':>7} {'p50 ms':>7} {'p99 ms':>7} {'p99.9 ms':>8} "
           f"{'max ms':>7} {'late %':>7} {'lost':>5} {'skipped':>7} {'commands':>9}")
     for r in results:
-        print(f"{r['mode']:<10} {r['processes']:>5} {r['cpu total']:>7.1f} {r['p50']:>7.3f} "
+        print(f"{r['mode']:<11} {r['processes']:>5} {r['cpu total']:>7.1f} {r['p50']:>7.3f} "
               f"{r['p99']:>7.3f} {r['p99.9']:>8.3f} {r['max']:>7.2f} {r['late %']:>7.2f} "
               f"{r['lost']:>5.0f} {r['skipped']:>7.0f} {r['commands']:>9.0f}")
     for r in results:
@@ -238,13 +259,24 @@ def main(argv=None) -> int:
                         help='s after the loops close before the window starts')
     parser.add_argument('--hog', type=int, default=0, metavar='N',
                         help='N CPU-bound processes beside the stack')
-    parser.add_argument('--modes', nargs='+', default=['separate', 'composed'],
-                        choices=['separate', 'composed'])
+    parser.add_argument('--modes', nargs='+',
+                        choices=['separate', 'composed', 'separate+rt', 'composed+rt'],
+                        help='default: separate composed, and composed+rt with --hog')
+    parser.add_argument('--realtime', type=int, default=80, metavar='PRIORITY',
+                        help='thread_priority of the +rt modes (SCHED_FIFO 1..99, default 80)')
+    parser.add_argument('--rt-cpus', type=int, nargs='+', metavar='CPU',
+                        help='cpu_affinity of the +rt modes (default: any CPU)')
+    parser.add_argument('--rt-lock-memory', action='store_true',
+                        help='lock_memory in the +rt modes')
     parser.add_argument('--rig', choices=['sim', 'driver'], default='sim',
                         help='sim: sim_node; driver: pam-emulator + driver_node (default sim)')
     args = parser.parse_args(argv)
     if args.joints < 1 or args.duration <= 0 or args.warmup < 0 or args.hog < 0:
         parser.error('--joints >= 1, --duration > 0, --warmup >= 0, --hog >= 0')
+    if not 1 <= args.realtime <= 99:
+        parser.error('--realtime: a SCHED_FIFO priority, 1..99')
+    if args.modes is None:
+        args.modes = ['separate', 'composed'] + (['composed+rt'] if args.hog else [])
     domain = campaign_domain()
     spaces = namespaces(args.joints)
     import rclpy

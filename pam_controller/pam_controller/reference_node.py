@@ -24,6 +24,7 @@ from pam_common.finite_guard import FiniteGuard
 from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, check_all, fail, usage_text
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS
+from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeKnobs
 from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
 from pam_interfaces.msg import Reference
 
@@ -48,6 +49,7 @@ PARAMETERS = (
     ParamSpec('seed', 0, 'integer', '', 'steps: seed of the levels.', range=(0, 2 ** 31 - 1)),
     ParamSpec('rate', 100.0, 'double', 'Hz', 'Publishing rate.', range=(0.1, 1000.0)),
     HARDWARE_ID_PARAM,
+    *REALTIME_PARAMS,
 )
 SUMMARY = ['Reference profiles for pi_node (pam_controller): publishes reference '
            '(pam_interfaces/Reference) at `rate`. Default namespace /pam.']
@@ -94,6 +96,9 @@ class ReferenceNode(Node):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
         self.values = parameter_values(self, PARAMETERS, check=check_values)
+        # the stack's knobs (pam_common.realtime_knobs): the executor it shares when composed
+        self.realtime = RealtimeKnobs(self.get_logger(), self.values)
+        self.realtime.apply_to_executor()
         self.mode = Reference.ANGLE if self.values['mode'] == 'angle' else Reference.TORQUE
         self.steps = step_levels(self.values) if self.values['profile'] == 'steps' else None
         self.guard = FiniteGuard(self.get_logger())
@@ -102,8 +107,10 @@ class ReferenceNode(Node):
         self.start = None
         self.published = 0
         self.create_timer(1.0 / self.values['rate'], self._tick)
-        DiagnosticsPublisher(self, 'reference profile', self.values['hardware_id'],
-                             self._report).add_check(self.guard.report)
+        diagnostics = DiagnosticsPublisher(self, 'reference profile', self.values['hardware_id'],
+                                           self._report)
+        diagnostics.add_check(self.guard.report)
+        diagnostics.add_check(self.realtime.report)
         unit = 'rad' if self.mode == Reference.ANGLE else 'N m'
         self.get_logger().info(
             f"{self.values['profile']} profile, {self.values['mode']} mode, amplitude "
