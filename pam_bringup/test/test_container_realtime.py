@@ -12,7 +12,6 @@ node's /diagnostics status reports the shared executor thread as it is.
 from __future__ import annotations
 
 import os
-import re
 
 import pytest
 import yaml
@@ -20,21 +19,12 @@ from diagnostic_msgs.msg import DiagnosticArray
 
 from pam_bringup.stack import default_params_file
 from pam_common.diagnostics import status_values
-from pam_common.testing import STARTUP_TIMEOUT, log_lines
+from pam_common.testing import STARTUP_TIMEOUT, log_lines, logged_tid, thread_state
 from pam_interfaces.msg import ValveCommand
 
 TIMEOUT = 2.0 * STARTUP_TIMEOUT     # s: four nodes starting in one process on a loaded machine
 
 pytestmark = pytest.mark.skipif(os.geteuid() != 0, reason='SCHED_FIFO needs root here')
-
-
-def thread_state(pid: int, tid: int) -> tuple[int, int, str]:
-    """(policy, rt_priority, Cpus_allowed_list) of a thread, from /proc/<pid>/task/<tid>."""
-    with open(f'/proc/{pid}/task/{tid}/stat') as f:
-        fields = f.read().rsplit(')', 1)[1].split()      # fields[0] is field 3
-    with open(f'/proc/{pid}/task/{tid}/status') as f:
-        cpus = re.search(r'^Cpus_allowed_list:\s*(\S+)', f.read(), re.M).group(1)
-    return int(fields[41 - 3]), int(fields[40 - 3]), cpus
 
 
 def test_the_shared_executor_thread_gets_the_highest_priority_and_the_union(
@@ -56,13 +46,12 @@ def test_the_shared_executor_thread_gets_the_highest_priority_and_the_union(
     assert f'SCHED_FIFO priority 30 granted to thread executor (tid {pid})' in '\n'.join(sim)
     assert f'CPU affinity 0 granted to thread executor (tid {pid})' in '\n'.join(sim)
     assert f'SCHED_FIFO priority 60 granted to thread executor (tid {pid})' in '\n'.join(pi)
-    sampler = [line for line in sim if 'SCHED_FIFO priority 30 granted to thread '
-               'sim_node_sampler' in line]
-    assert sampler, sim
-    sampler_tid = int(re.search(r'\(tid (\d+)\)', sampler[0]).group(1))
+    sampler_tid = logged_tid(sim, 'SCHED_FIFO priority 30 granted to thread sim_node_sampler')
     assert log_lines(container.stderr, 'WARN') == []
-    assert thread_state(pid, pid) == (os.SCHED_FIFO, 60, '0')
-    assert thread_state(pid, sampler_tid) == (os.SCHED_FIFO, 30, '0')
+    for tid, priority in ((pid, 60), (sampler_tid, 30)):
+        state = thread_state(pid, tid)
+        assert (state['policy'], state['rt_priority'], state['cpus']) == (os.SCHED_FIFO, priority,
+                                                                          '0'), (tid, state)
 
     def reported() -> dict:
         out = {}

@@ -136,6 +136,7 @@ class RealtimeKnobs:
         self._logger = logger
         self._threads: dict[str, int] = {}         # name -> tid of the threads it applied to
         self._refused: list[str] = []              # short texts of the knobs refused
+        self._rt_kernel = realtime.has_realtime_kernel()
 
     def apply_to_executor(self) -> list[realtime.Grant]:
         """The knobs for the calling thread, the executor's (merged with the other nodes of the
@@ -184,7 +185,7 @@ class RealtimeKnobs:
                                     f'{realtime.cpus_text(tid)}'
                   for name, tid in self._threads.items()}
         values['memory locked (MiB)'] = realtime.locked_memory_kb() / 1024.0
-        values['PREEMPT_RT kernel'] = realtime.has_realtime_kernel()
+        values['PREEMPT_RT kernel'] = self._rt_kernel
         if self._refused:
             return WARN, 'real-time knobs refused: ' + '; '.join(self._refused), values
         return OK, '', values

@@ -473,3 +473,36 @@ def assert_follows_the_skeleton(node_process, node: str, package: str, specs) ->
     misspelt = node_process(node, package, '-p', f'{typo}:=1')
     misspelt.wait_for(lambda: warning in misspelt.stderr, STARTUP_TIMEOUT, 'the warning')
     assert 'Traceback' not in misspelt.stderr, misspelt.stderr
+
+
+# ---------------------------------------------------------------------------- threads from /proc
+def thread_state(pid: int, tid: int) -> dict:
+    """A thread of a running process as the kernel shows it: policy (/proc/<pid>/task/<tid>/stat
+    field 41: os.SCHED_OTHER, os.SCHED_FIFO ...), rt_priority (field 40), cpus
+    (Cpus_allowed_list of its status, e.g. '0-1') and comm (its name)."""
+    import re
+    task = f'/proc/{pid}/task/{tid}'
+    with open(f'{task}/stat') as f:
+        fields = f.read().rsplit(')', 1)[1].split()      # fields[0] is field 3 (state)
+    with open(f'{task}/status') as f:
+        cpus = re.search(r'^Cpus_allowed_list:\s*(\S+)', f.read(), re.M).group(1)
+    with open(f'{task}/comm') as f:
+        comm = f.read().strip()
+    return {'policy': int(fields[41 - 3]), 'rt_priority': int(fields[40 - 3]), 'cpus': cpus,
+            'comm': comm}
+
+
+def process_locked_kb(pid: int) -> int:
+    """VmLck of /proc/<pid>/status: the process's locked memory, kB."""
+    from pam_common.realtime import locked_memory_kb
+    return locked_memory_kb(pid)
+
+
+def logged_tid(lines: list[str], text: str) -> int:
+    """The tid of the first line holding `text`, as the real-time knobs name a thread: '...
+    thread NAME (tid N)' (pam_common.realtime)."""
+    import re
+    for line in lines:
+        if text in line:
+            return int(re.search(r'\(tid (\d+)\)', line).group(1))
+    raise AssertionError(f'no line with {text!r} in {lines}')

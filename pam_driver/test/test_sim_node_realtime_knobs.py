@@ -18,14 +18,20 @@ on: it publishes its samples and its /diagnostics status is WARN naming the refu
 from __future__ import annotations
 
 import os
-import re
 import shutil
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 
 from pam_common.diagnostics import status_values
-from pam_common.testing import NodeProcess, child_env, log_lines
+from pam_common.testing import (
+    NodeProcess,
+    child_env,
+    log_lines,
+    logged_tid,
+    process_locked_kb,
+    thread_state,
+)
 from pam_interfaces.msg import Pressures
 
 STARTUP = 45.0                 # s, first message from a fresh process (loaded machine)
@@ -35,31 +41,6 @@ UNPRIVILEGED = ['prlimit', '--rtprio=0', '--memlock=65536:65536', 'setpriv',
                 '--inh-caps=-sys_nice,-ipc_lock', '--bounding-set=-sys_nice,-ipc_lock', '--']
 
 pytestmark = pytest.mark.skipif(os.geteuid() != 0, reason='the granted path needs root here')
-
-
-def thread_state(pid: int, tid: int) -> dict:
-    """policy, rt_priority and CPUs of thread `tid` of process `pid`, from /proc."""
-    with open(f'/proc/{pid}/task/{tid}/stat') as f:
-        fields = f.read().rsplit(')', 1)[1].split()      # fields[0] is field 3 (state)
-    with open(f'/proc/{pid}/task/{tid}/status') as f:
-        cpus = re.search(r'^Cpus_allowed_list:\s*(\S+)', f.read(), re.M).group(1)
-    with open(f'/proc/{pid}/task/{tid}/comm') as f:
-        comm = f.read().strip()
-    return {'rt_priority': int(fields[40 - 3]), 'policy': int(fields[41 - 3]), 'cpus': cpus,
-            'comm': comm}
-
-
-def locked_kb(pid: int) -> int:
-    with open(f'/proc/{pid}/status') as f:
-        return int(re.search(r'^VmLck:\s*(\d+) kB', f.read(), re.M).group(1))
-
-
-def tid_in(lines: list[str], text: str) -> int:
-    """The tid of the first line holding `text` ('... thread NAME (tid N)')."""
-    for line in lines:
-        if text in line:
-            return int(re.search(r'\(tid (\d+)\)', line).group(1))
-    raise AssertionError(f'no line with {text!r} in {lines}')
 
 
 def wait_for_lines(process, severity: str, texts: list[str]) -> list[str]:
@@ -95,15 +76,15 @@ def test_granted_to_the_executor_and_the_sampler_thread(sim_node, probe, helpers
         'CPU affinity 0 granted to thread sim_node_sampler (tid ',
         'memory locked (mlockall MCL_CURRENT|MCL_FUTURE): '])
     pid = sim.proc.pid
-    executor = tid_in(info, 'granted to thread executor')
-    sampler = tid_in(info, 'granted to thread sim_node_sampler')
+    executor = logged_tid(info, 'granted to thread executor')
+    sampler = logged_tid(info, 'granted to thread sim_node_sampler')
     assert executor == pid                       # the main thread spins the executor
     assert sampler != pid
     for tid in (executor, sampler):
         state = thread_state(pid, tid)
         assert (state['policy'], state['rt_priority'], state['cpus']) == (SCHED_FIFO, 50, '0'), \
             (tid, state)
-    assert locked_kb(pid) > 10 * 1024
+    assert process_locked_kb(pid) > 10 * 1024
     middleware = [thread_state(pid, int(t)) for t in os.listdir(f'/proc/{pid}/task')]
     middleware = [s for s in middleware if s['comm'].startswith('dds.')]
     assert middleware and all(s['policy'] == SCHED_OTHER for s in middleware), middleware
@@ -136,12 +117,13 @@ def test_refused_without_the_privileges_the_node_warns_and_runs_on(ros_domain, t
         assert 'no CAP_IPC_LOCK' in memory[0] and 'ulimit -l unlimited' in memory[0], memory
         info = wait_for_lines(sim, 'INFO', ['CPU affinity 0 granted to thread sim_node_sampler'])
         pid = sim.proc.pid
-        for tid in (tid_in(warn, 'thread executor'), tid_in(warn, 'thread sim_node_sampler')):
+        sampler = logged_tid(warn, 'thread sim_node_sampler')
+        for tid in (logged_tid(warn, 'thread executor'), sampler):
             state = thread_state(pid, tid)
             assert (state['policy'], state['rt_priority'], state['cpus']) == (SCHED_OTHER, 0,
                                                                               '0'), state
-        assert tid_in(info, 'thread sim_node_sampler') == tid_in(warn, 'thread sim_node_sampler')
-        assert locked_kb(pid) == 0
+        assert logged_tid(info, 'thread sim_node_sampler') == sampler
+        assert process_locked_kb(pid) == 0
         assert_runs_on(sim, probe, helpers)
         sim.wait_for(lambda: 'real-time knobs refused' in latest_status(diagnostics)[1],
                      STARTUP, 'the refused knobs on /diagnostics')
