@@ -22,7 +22,9 @@ heartbeat, the command watchdog tick, reconnect with exponential backoff); the e
 (EventsExecutor via run_node) runs the subscription, services and the diagnostics timer and
 writes COMMAND frames. Both hand every event to the DriverCore (pam_driver.driver_core) under one
 lock and write the output it decides under that same lock, so a decision and its COMMAND frame are
-one step (a watchdog trip cannot be overtaken by a command decided before it).
+one step (a watchdog trip cannot be overtaken by a command decided before it). The real-time knobs
+thread_priority (SCHED_FIFO), cpu_affinity and lock_memory apply to both threads, each logged
+when granted and a warning when refused (pam_common.realtime_knobs, docs/realtime.md).
 
 Safety (the choice, documented in README and PROTOCOL.md): ARMED (valid commands, clipped to
 valve_limits, go to the valves) or SAFE (safe_output, latched until ~/arm) on the command watchdog,

@@ -38,7 +38,9 @@ after the previous one: consumers should step their models by h, not by stamp di
 Late steps, skipped periods, the maximum lateness and the achieved rate (over the last
 diagnostics window) are reported on /diagnostics. Subscriptions and timers are spun by
 rclpy.experimental.EventsExecutor (SingleThreadedExecutor if that is unavailable), in bounded
-slices (see pam_common.executors).
+slices (see pam_common.executors). The real-time knobs thread_priority (SCHED_FIFO), cpu_affinity
+and lock_memory apply to the executor thread and the sampler thread (sim_node_sampler), each
+logged when granted and a warning when refused (pam_common.realtime_knobs, docs/realtime.md).
 
 Sample counter (Pressures.sample): k + 1 for the sample after k model steps, in both timings. A
 re-published lockstep sample keeps its counter (a repeat); a realtime period SKIPPED after a
