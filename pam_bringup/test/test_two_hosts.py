@@ -26,6 +26,9 @@ reference step (COMPARED), the steady-state error and the settling time of track
 runs are sequential, on one ROS domain claimed for this module (pam_common.testing.ros_domain).
 tracking_report runs at nice -10 and must have every sample (see MEASURE_NICE).
 
+A second test runs docs/two_hosts.md's recipe for networks without multicast (LOCALHOST with
+ROS_STATIC_PEERS) between the two namespaces.
+
 Needs root and `ip netns` (skipped otherwise, with the reason); the namespaces are deleted, and
 every process in them killed, even when the test fails or is interrupted.
 """
@@ -43,7 +46,7 @@ import pytest
 from pam_bringup.stack import node_argv
 from pam_common.testing import STARTUP_TIMEOUT, NodeProcess, child_env, installed_config
 from pam_common.topics import DEFAULT_NAMESPACE, JOINT_MEASURED, VALVE_COMMAND
-from two_hosts_support import WATCH_TIMEOUT_CODE, TwoHosts, netns_unavailable, remove_stale
+from two_hosts_support import ADDRESS, WATCH_TIMEOUT_CODE, TwoHosts, netns_unavailable, remove_stale
 
 pytestmark = pytest.mark.skipif(netns_unavailable() is not None,
                                 reason=str(netns_unavailable()))
@@ -201,3 +204,30 @@ def test_closed_loop_across_two_hosts_matches_one_host(two_hosts, ros_domain, tm
     for far, near in zip(across, alone, strict=True):
         assert abs(far['steady'] - near['steady']) <= STEADY_TOLERANCE, summary
         assert abs(far['settling'] - near['settling']) <= SETTLING_TOLERANCE, summary
+
+
+def test_static_peers_discover_across_the_link_without_multicast(two_hosts, ros_domain,
+                                                                 tmp_path, request):
+    """docs/two_hosts.md's recipe for networks without multicast: ROS_AUTOMATIC_DISCOVERY_RANGE=
+    LOCALHOST (rmw_fastrtps: no multicast at all) with ROS_STATIC_PEERS naming the other host.
+    Without the peers nothing crosses (the negative control); with them sim_node's samples reach
+    B."""
+    def peers_env(peer: str | None) -> dict:
+        env = child_env(ros_domain)   # LOCALHOST
+        if peer is not None:
+            env['ROS_STATIC_PEERS'] = ADDRESS[peer]
+        return env
+
+    for peers in (False, True):
+        rig = Hosts(two_hosts, {'a': 'a'}, peers_env('b' if peers else None), tmp_path,
+                    request)
+        far = Hosts(two_hosts, {'b': 'b'}, peers_env('a' if peers else None), tmp_path,
+                    request)
+        label = 'static peers:' if peers else 'no peers:'
+        try:
+            rig.start('a', 'sim_node', 'pam_driver')
+            seen = far.watch('b', STARTUP_TIMEOUT if peers else NEGATIVE_WAIT, LOOP_TOPICS[:1])
+            expected = 0 if peers else WATCH_TIMEOUT_CODE
+            assert seen.returncode == expected, f'{label} {seen.stdout}{seen.stderr}'
+        finally:
+            rig.close(label)
