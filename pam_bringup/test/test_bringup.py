@@ -20,11 +20,12 @@ from pathlib import Path
 
 import pytest
 import yaml
+from rcl_interfaces.srv import GetParameters
 
 from pam_bringup.params_sections import key_pattern, section_keys, sections_for
 from pam_bringup.stack import default_params_file, every_node
 from pam_common.executables import find_executable
-from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable, stamp_ns
+from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable, stamp_ns, wait_until
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
 
 WINDOW = 1.5        # s, rate measurement window
@@ -139,6 +140,38 @@ def test_sigterm_stops_every_child(node_process, probe, ros_domain):
     assert_clean_exit(code, run.stdout + run.stderr)
     leftovers = [name for name, pid in pids.items() if process_exists(pid, name)]
     assert not leftovers, f'still running after pam-bringup exited: {leftovers}'
+
+
+def test_another_namespace_applies_the_params_files_sections(node_process, probe, ros_domain):
+    """--namespace /joint2 with the default params file (keyed /pam/<node>): the nodes read
+    the file's values, not their defaults, asked over ROS (~/get_parameters): sim_node's
+    mismatch is 'mild' in the file and '' by default, reference_node's repeat true and false
+    (`<node> --help`)."""
+    estimates = probe.subscribe(JointEstimate, '/joint2/estimate')
+    run = bringup(node_process, ros_domain, '--no-controller', '--namespace', '/joint2')
+    run.wait_for(lambda: len(estimates) > 0, STARTUP_TIMEOUT, 'the first /joint2/estimate')
+    values = get_parameters(probe, '/joint2/sim_node', ['mismatch', 'rate'])
+    assert values == {'mismatch': 'mild', 'rate': 1000.0}, values
+    values = get_parameters(probe, '/joint2/reference_node', ['repeat', 'profile'])
+    assert values == {'repeat': True, 'profile': 'steps'}, values
+    out = run.stdout
+    assert 'namespace /joint2' in out and 'warning: no section' not in out, out
+    copy = re.search(r'applied to the namespace: (\S+\.yaml)\)', out)
+    assert copy and Path(copy.group(1)).is_file(), out
+    run.proc.send_signal(signal.SIGINT)
+    assert_clean_exit(run.wait_exit(timeout=STOP_TIMEOUT + 10.0), run.stdout + run.stderr)
+    assert not Path(copy.group(1)).parent.exists(), 'the copy outlived pam-bringup'
+
+
+def get_parameters(probe, node: str, names: list[str]) -> dict:
+    """{name: value} of node's parameters `names`, through its ~/get_parameters service."""
+    from rclpy.parameter import parameter_value_to_python
+    client = probe.client(GetParameters, f'{node}/get_parameters')
+    assert client.wait_for_service(timeout_sec=STARTUP_TIMEOUT), f'no {node}/get_parameters'
+    future = client.call_async(GetParameters.Request(names=names))
+    assert wait_until(future.done, STARTUP_TIMEOUT), f'{node}/get_parameters: no answer'
+    values = future.result().values
+    return {n: parameter_value_to_python(v) for n, v in zip(names, values, strict=True)}
 
 
 def test_a_child_that_dies_fails_the_bringup(node_process, ros_domain, tmp_path):
