@@ -43,9 +43,11 @@ from pam_common.params_files import ros_args_problem
 from .arming import DriverArmer
 from .params_namespace import StackParams, stack_params
 from .stack import (
+    CONTAINER,
     DEFAULT_NAMESPACE,
     RIGS,
     MissingExecutable,
+    container_options,
     default_params_file,
     locate_executables,
     needs_arming,
@@ -63,8 +65,9 @@ def parse_args(argv):
     parser = argparse.ArgumentParser(
         prog=PROG,
         description='Start the PAM stack (rig, ukf_node, pi_node, reference_node) as separate '
-                    'processes from one ROS 2 params file; prefix and forward their logs; stop '
-                    'them all on Ctrl-C / SIGTERM; exit non-zero when any of them dies.',
+                    'processes (or in one: --composed) from one ROS 2 params file; prefix and '
+                    'forward their logs; stop them all on Ctrl-C / SIGTERM; exit non-zero when '
+                    'any of them dies.',
         epilog='The params file is a standard ROS 2 one, passed to every node with '
                '`--ros-args --params-file FILE`: one section per node keyed by its full name '
                '(/pam/sim_node:, /pam/ukf_node:, /pam/pi_node:, /pam/reference_node:; '
@@ -75,6 +78,11 @@ def parse_args(argv):
                'with every node exiting cleanly, 1 a node died or did not stop cleanly, 2 usage '
                'or set-up error. Example: pam-bringup --no-controller --no-reference '
                '--duration 30 --domain-id 42 --log-dir out/logs')
+    parser.add_argument('--composed', action='store_true',
+                        help='run every node in one process (pam_container, one executor): '
+                             'about half the CPU of separate processes and a shorter sample -> '
+                             'command path; one crash takes the whole stack down '
+                             '(docs/composition.md)')
     parser.add_argument('--params-file', metavar='FILE', type=Path,
                         help='ROS 2 params YAML with a section per node (default: '
                              'share/pam_bringup/config/bringup.yaml)')
@@ -131,7 +139,7 @@ def main(argv=None) -> int:
         missing = not (args.params_file or params_file.exists())
         return error(problem + (' (run `make setup`, or pass --params-file)' if missing else ''))
     try:
-        executables = locate_executables(nodes)
+        executables = locate_executables([CONTAINER] if args.composed else nodes)
     except MissingExecutable as exc:
         return error(str(exc))
     with tempfile.TemporaryDirectory(prefix=f'{PROG}-') as run_dir:
@@ -154,10 +162,16 @@ def run(args, nodes, executables: dict[str, str], params: StackParams) -> int:
             return error(f'cannot create --log-dir {log_dir}: {exc.strerror}')
 
     colour = args.colour and sys.stdout.isatty() and 'NO_COLOR' not in os.environ
-    output = Output(PROG, [n.name for n in nodes], colour)
     env = child_environment(args.domain_id, colour)
-    children = [Child(node.name, node_argv(executables[node.name], args.namespace, params.file),
-                      node.role) for node in nodes]
+    if args.composed:
+        argv = node_argv(executables[CONTAINER.name], args.namespace, params.file)
+        argv[1:1] = container_options(args.rig, reference=not args.no_reference,
+                                      controller=not args.no_controller)
+        children = [Child(CONTAINER.name, argv, ', '.join(n.name for n in nodes))]
+    else:
+        children = [Child(node.name, node_argv(executables[node.name], args.namespace,
+                                               params.file), node.role) for node in nodes]
+    output = Output(PROG, [c.name for c in children], colour)
     supervisor = Supervisor(children, env, output, log_dir)
 
     output.say(f"ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '(unset: 0)')}, namespace "

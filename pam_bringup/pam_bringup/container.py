@@ -6,7 +6,11 @@ those of the separate processes; only the process is shared. What composition sa
 docs/composition.md.
 
     pam_container --ros-args -r __ns:=/pam --params-file bringup.yaml     # the stack of pam-bringup
-    pam_container --namespace /joint1 /joint2 --ros-args --params-file f.yaml   # two stacks
+    pam_container --namespace /joint1 /joint2 --params-file bringup.yaml  # two stacks
+
+--params-file FILE applies the file in every namespace as `pam-bringup --namespace` does
+(pam_bringup.params_namespace: the /pam/<node> sections re-keyed, a section of the namespace's
+own wins); a file given after --ros-args is passed to every node as it is.
 
 Launch files start it as any node (no `name=`: a node-name remap would rename every node):
     Node(package='pam_bringup', executable='pam_container', namespace='pam',
@@ -18,10 +22,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import tempfile
+from pathlib import Path
 
 from pam_common.node_skeleton import Component, container_main
 
-from .stack import RIGS, normal_namespace, stack_nodes
+from .params_namespace import stack_params
+from .stack import DEFAULT_NAMESPACE, RIGS, normal_namespace, stack_nodes
 
 PROG = 'pam_container'
 
@@ -56,6 +63,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--namespace', nargs='+', metavar='NS', default=[],
                    help='one stack per namespace (default: one stack, in /pam unless the ROS '
                         'arguments remap __ns)')
+    p.add_argument('--params-file', type=Path, metavar='FILE',
+                   help="the stack's params file, applied in each namespace as pam-bringup "
+                        'does (its /pam/<node> sections re-keyed to the namespace)')
     return p
 
 
@@ -78,19 +88,33 @@ def main(argv=None) -> int:
         p.error('-r __ns:= and --namespace both set the namespace: use one of them')
     specs = stack_nodes(args.rig, reference=not args.no_reference,
                         controller=not args.no_controller)
-    components, node_kwargs = [], []
-    for ns in namespaces or [None]:
-        for spec in specs:
-            components.append(component(spec.package, spec.name))
-            node_kwargs.append({} if ns is None else {'namespace': ns})
+    remapped = [a.split(':=', 1)[1] for a in ros_args if a.startswith('__ns:=')]
+    with tempfile.TemporaryDirectory(prefix=f'{PROG}-') as run_dir:
+        components, node_kwargs = [], []
+        for ns in namespaces or [None]:
+            kwargs = {} if ns is None else {'namespace': ns}
+            if args.params_file is not None:
+                try:
+                    params = stack_params(args.params_file.expanduser(),
+                                          ns or (remapped[-1] if remapped else DEFAULT_NAMESPACE),
+                                          [spec.name for spec in specs], Path(run_dir))
+                except ValueError as exc:
+                    print(f'{PROG}: error: {exc}', file=sys.stderr)
+                    return 2
+                for warning in params.warnings:
+                    print(f'{PROG}: {warning}', file=sys.stderr)
+                kwargs['cli_args'] = ['--ros-args', '--params-file', str(params.file)]
+            for spec in specs:
+                components.append(component(spec.package, spec.name))
+                node_kwargs.append(kwargs)
 
-    def started(nodes) -> None:
-        nodes[0].get_logger().info(
-            f'{PROG}: {len(nodes)} nodes in one process: '
-            + ', '.join(node.get_fully_qualified_name() for node in nodes))
+        def started(nodes) -> None:
+            from rclpy.logging import get_logger
+            get_logger(PROG).info(f'{len(nodes)} nodes in one process: ' + ', '.join(
+                node.get_fully_qualified_name() for node in nodes))
 
-    return container_main(components, PROG, p.format_usage(), [PROG, *ros_args],
-                          node_kwargs=node_kwargs, on_started=started)
+        return container_main(components, PROG, p.format_usage(), [PROG, *ros_args],
+                              node_kwargs=node_kwargs, on_started=started)
 
 
 if __name__ == '__main__':

@@ -36,6 +36,8 @@ RIGS = {'sim': NodeSpec('sim_node', 'pam_driver', 'rig (sim)'),
 ESTIMATOR = NodeSpec('ukf_node', 'pam_estimator', 'estimator')
 REFERENCE = NodeSpec('reference_node', 'pam_controller', 'reference')
 CONTROLLER = NodeSpec('pi_node', 'pam_controller', 'controller')
+#: The process that composes the stack's nodes (pam_bringup.container).
+CONTAINER = NodeSpec('pam_container', PACKAGE, 'the stack, composed')
 
 
 def stack_nodes(rig: str = 'sim', reference: bool = True,
@@ -64,6 +66,13 @@ def normal_namespace(text: str) -> str:
     if not re.fullmatch(r'/|(/[A-Za-z_][A-Za-z0-9_]*)+', ns):
         raise ValueError(f'{text!r} is not a valid ROS namespace')
     return ns
+
+
+def container_options(rig: str = 'sim', reference: bool = True,
+                      controller: bool = True) -> list[str]:
+    """pam_container's options for the stack_nodes() of these arguments."""
+    return (['--rig', rig] + ([] if reference else ['--no-reference'])
+            + ([] if controller else ['--no-controller']))
 
 
 def every_node() -> list[NodeSpec]:

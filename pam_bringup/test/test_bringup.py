@@ -315,3 +315,31 @@ def test_rig_driver_is_armed_once_the_controller_runs(node_process, probe, ros_d
     assert_clean_exit(code, run.stdout + run.stderr)
     assert set(started_pids(run.stdout)) == {'driver_node', 'ukf_node', 'pi_node'}, run.stdout
     assert emulator.alive()
+
+
+def test_composed_driver_stack_is_armed_and_runs(node_process, probe, ros_domain, tmp_path):
+    """pam-bringup --composed --rig driver: one process (pam_container) holds driver_node,
+    ukf_node, reference_node and pi_node against pam-emulator; pam-bringup arms driver_node as
+    for separate processes, the commands reach the board at the sample rate, and Ctrl-C stops
+    the one process cleanly."""
+    emulator, link = start_emulator(node_process, tmp_path)
+    applied = probe.subscribe(ValveCommand, '/pam/driver_node/applied_command', depth=1000)
+    commands = probe.subscribe(ValveCommand, '/pam/valve_command', depth=1000)
+    params = driver_params(tmp_path, link, arm_at_start=False, watchdog_timeout=0.5)
+    run = bringup(node_process, ros_domain, '--composed', '--rig', 'driver', '--params-file',
+                  str(params))
+    run.wait_for(lambda: '/pam/driver_node/arm: armed' in run.stdout, STARTUP_TIMEOUT,
+                 'pam-bringup arming driver_node')
+    run.wait_for(lambda: any((m.u1, m.u2) != (0.0, 0.0) for m in applied.messages()), 5.0,
+                 "pi_node's commands on the valves")
+    time.sleep(SETTLE + 2.0 * WINDOW)
+    assert stamp_rate(commands, WINDOW) >= DRIVER_MIN_RATE
+    assert run.alive() and 'died' not in run.stdout, run.stdout
+    run.proc.send_signal(signal.SIGINT)
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    out = run.stdout
+    assert_clean_exit(code, out + run.stderr)
+    assert set(started_pids(out)) == {'pam_container'}, out
+    assert any('4 nodes in one process: /pam/driver_node, /pam/ukf_node, /pam/reference_node, '
+               '/pam/pi_node' in line for line in prefixed(out, 'pam_container')), out
+    assert emulator.alive()

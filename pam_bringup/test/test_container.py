@@ -124,21 +124,26 @@ def test_composed_stack_looks_like_the_separate_one(node_process, probe):
     composed = node_process('pam_container', 'pam_bringup', *ros_args)
     seen_composed = snapshot(probe, diagnostics, '/pam')
     assert seen_composed == seen_separate
-    assert 'pam_container: 4 nodes in one process: /pam/sim_node, /pam/ukf_node, ' \
+    assert '[pam_container]: 4 nodes in one process: /pam/sim_node, /pam/ukf_node, ' \
            '/pam/reference_node, /pam/pi_node' in composed.stderr
     assert composed.stop() == 0, composed.stderr
 
 
 def test_two_stacks_in_one_container(node_process, probe):
+    """Two complete stacks, each with the stack's params file applied in its namespace (its
+    /pam sections re-keyed: sim_node's mismatch is 'mild', not the default '')."""
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics')
     composed = node_process('pam_container', 'pam_bringup', '--namespace', 'joint1', '/joint2/',
-                            raw=True)
+                            '--params-file', str(default_params_file()), raw=True)
     for ns in ('/joint1', '/joint2'):
         wait_for_flow(probe, ns)
     names = {f'{ns}/{n}' for ns in ('/joint1', '/joint2') for n in STACK}
     assert wait_until(lambda: {s.split(': ')[0] for s in
                                status_names(diagnostics, ['/joint1', '/joint2'])} == names,
                       TIMEOUT), status_names(diagnostics, ['/joint1', '/joint2'])
+    for ns in ('/joint1', '/joint2'):
+        assert "string_value='mild'" in parameters(probe, f'{ns}/sim_node')['mismatch']
+        assert 'double_value=40.0' in parameters(probe, f'{ns}/pi_node')['kp_angle']
     assert composed.alive()
     assert composed.stop() == 0, composed.stderr
 
