@@ -3,7 +3,8 @@
 
 For each mode, in one run (so the figures compare on the same, possibly busy, machine):
   separate  every node its own process (pam-bringup's default: 4 processes per joint);
-  composed  every node of every joint in one process (pam_container --namespace j1 .. jN).
+  composed  every node of every joint in one process (pam_container --namespace j1 .. jN), or
+            the joints split over --containers K processes (e.g. one per core).
 N joints are N complete stacks (sim_node, ukf_node, reference_node, pi_node) in namespaces
 /j1 .. /jN (/pam for one joint) with the parameters of pam_bringup/config/bringup.yaml, on a
 ROS domain of their own. After --warmup s the rigs' latency statistics are reset
@@ -88,7 +89,8 @@ def knob_args(mode: str, args) -> list[str]:
 
 
 def commands(mode: str, rig: str, spaces: list[str], params: Path,
-             ports: dict[str, str], knobs: list[str] = ()) -> list[tuple[str, list[str]]]:
+             ports: dict[str, str], knobs: list[str] = (),
+             containers: int = 1) -> list[tuple[str, list[str]]]:
     """(label, argv) of every process of the mode (its knobs: knob_args): the emulated boards
     first (driver path)."""
     ros = ['--ros-args', '--params-file', str(params), *knobs]
@@ -97,8 +99,10 @@ def commands(mode: str, rig: str, spaces: list[str], params: Path,
                                       '--initial-command', '5.5', '5.5'])
               for ns in spaces if rig == 'driver']
     if mode == 'composed':
-        return [*boards, ('pam_container', [exe('pam_container', 'pam_bringup'), '--rig', rig,
-                                            '--namespace', *spaces, *ros])]
+        groups = [spaces[k::containers] for k in range(min(containers, len(spaces)))]
+        return [*boards, *[(f"pam_container {' '.join(group)}",
+                            [exe('pam_container', 'pam_bringup'), '--rig', rig, '--namespace',
+                             *group, *ros]) for group in groups]]
     return [*boards, *[(f'{ns}/{spec.name}', [exe(spec.name, spec.package), *ros[:1], '-r',
                                               f'__ns:={ns}', *ros[1:]])
                        for ns in spaces for spec in stack_nodes(rig)]]
@@ -171,7 +175,7 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
     procs = [(label, subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True))
              for label, argv in commands(mode, rig, spaces, params, ports,
-                                         knob_args(mode, args))]
+                                         knob_args(mode, args), args.containers)]
     try:
         rig_name = stack_nodes(rig)[0].name
         sims = [f'{ns}/{rig_name}' for ns in spaces]
@@ -262,6 +266,9 @@ def main(argv=None) -> int:
     parser.add_argument('--modes', nargs='+',
                         choices=['separate', 'composed', 'separate+rt', 'composed+rt'],
                         help='default: separate composed, and composed+rt with --hog')
+    parser.add_argument('--containers', type=int, default=1, metavar='K',
+                        help='composed modes: the joints split over K pam_container processes '
+                             '(default 1)')
     parser.add_argument('--realtime', type=int, default=80, metavar='PRIORITY',
                         help='thread_priority of the +rt modes (SCHED_FIFO 1..99, default 80)')
     parser.add_argument('--rt-cpus', type=int, nargs='+', metavar='CPU',
@@ -271,8 +278,10 @@ def main(argv=None) -> int:
     parser.add_argument('--rig', choices=['sim', 'driver'], default='sim',
                         help='sim: sim_node; driver: pam-emulator + driver_node (default sim)')
     args = parser.parse_args(argv)
-    if args.joints < 1 or args.duration <= 0 or args.warmup < 0 or args.hog < 0:
-        parser.error('--joints >= 1, --duration > 0, --warmup >= 0, --hog >= 0')
+    if args.joints < 1 or args.duration <= 0 or args.warmup < 0 or args.hog < 0 or \
+            args.containers < 1:
+        parser.error('--joints >= 1, --duration > 0, --warmup >= 0, --hog >= 0, '
+                     '--containers >= 1')
     if not 1 <= args.realtime <= 99:
         parser.error('--realtime: a SCHED_FIFO priority, 1..99')
     if args.modes is None:
