@@ -1,14 +1,15 @@
 """pam-demo: the main job (`make demo`): sensor-less angle control of the simulated rig in real
 time.
 
-pam-bringup starts, as separate processes talking over DDS, the simulated rig (sim_node at 1 kHz,
-the 'mild' mismatched plant with its noisy 12-bit pressure sensors), the UKF (ukf_node, nominal
-model), the PI controller (pi_node, feedback = the estimate) and reference_node (paper-style angle
-steps within +-20 deg, 8 s each), from pam_bringup's config/bringup.yaml; its output goes to
-OUT/logs/bringup.log, each node's to OUT/logs/<node>.log. tracking_report records --duration
-seconds, then prints per step the steady-state error against the true (measured) angle and the
-settling time, the estimation error, and writes a figure like the paper's Fig. 14 to
-OUT/demo_tracking.png. Then pam-bringup is stopped (SIGINT).
+pam-bringup starts, composed in one process (pam_container; its default), the simulated rig
+(sim_node at 1 kHz, the 'mild' mismatched plant with its noisy 12-bit pressure sensors), the UKF
+(ukf_node, nominal model), the PI controller (pi_node, feedback = the estimate) and reference_node
+(paper-style angle steps within +-20 deg, 8 s each), from pam_bringup's config/bringup.yaml; its
+output goes to OUT/logs/bringup.log, the stack's to OUT/logs/pam_container.log. tracking_report (a
+process of its own, talking to the stack over DDS) records --duration seconds, then prints per step
+the steady-state error against the true (measured) angle and the settling time, the estimation
+error, and writes a figure like the paper's Fig. 14 to OUT/demo_tracking.png. Then pam-bringup is
+stopped (SIGINT).
 
 The ROS domain is --domain-id, else ROS_DOMAIN_ID, else a random one in 110..199 (the demo does
 not talk to other graphs); discovery stays on this machine unless ROS_AUTOMATIC_DISCOVERY_RANGE

@@ -39,8 +39,11 @@ STARTED = re.compile(r'started (\w+) \(.*?\), pid (\d+):')
 
 
 def bringup(node_process, ros_domain, *args):
-    return node_process('pam-bringup', 'pam_bringup', '--domain-id', str(ros_domain), *args,
-                        raw=True)
+    """pam-bringup with these arguments, --separate unless they say --composed (most tests here
+    are about supervising separate processes; the composed stack has tests of its own)."""
+    mode = () if '--composed' in args else ('--separate',)
+    return node_process('pam-bringup', 'pam_bringup', '--domain-id', str(ros_domain), *mode,
+                        *args, raw=True)
 
 
 def started_pids(output: str) -> dict[str, int]:
@@ -81,7 +84,8 @@ def test_help_exits_0():
                          capture_output=True, text=True, timeout=30)
     assert run.returncode == 0, run.stderr
     for option in ('--params-file', '--rig', '--no-controller', '--no-reference', '--no-arm',
-                   '--duration', '--domain-id', '--namespace', '--log-dir'):
+                   '--duration', '--domain-id', '--namespace', '--log-dir', '--composed',
+                   '--separate'):
         assert option in run.stdout
 
 

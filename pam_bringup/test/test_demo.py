@@ -10,7 +10,9 @@ from pathlib import Path
 
 from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable
 
-DURATION = 10.0   # s recorded: the first 8 s reference step complete, the next one begun
+DURATION = 12.0   # s recorded: the first 8 s reference step, then at least 4 s of the next one
+#                  (a step counts once held 2 s: with 10 s, a tracking_report that got the first
+#                  reference at once saw the second held just under 2 s and reported no step)
 
 
 def test_help_exits_0():
@@ -46,7 +48,7 @@ def test_the_demo_reports_the_tracking_and_stops_the_stack(node_process, ros_dom
 
     log = (out / 'logs' / 'bringup.log').read_text()
     started = dict(re.findall(r'started (\w+) \(.*?\), pid (\d+):', log))
-    assert set(started) == {'sim_node', 'ukf_node', 'reference_node', 'pi_node'}, log
+    assert set(started) == {'pam_container'}, log          # pam-bringup's default: composed
     for name in started:
         assert (out / 'logs' / f'{name}.log').stat().st_size > 0, name
     assert 'SIGINT received: stopping every node' in log, log
