@@ -20,7 +20,7 @@ from rclpy.task import Future
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
-from pam_common.qos import SAMPLE_QOS
+from pam_common.qos import RECORD_QOS
 from pam_common.stamps import stamp_ns
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, REFERENCE, VALVE_COMMAND
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
@@ -52,10 +52,10 @@ class TrackingReport(Node):
         self.commands = {}          # stamp -> (u1, u2)
         self.first_ns = None
         self.finished = Future()
-        self.create_subscription(Reference, REFERENCE, self._on_reference, SAMPLE_QOS)
-        self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, SAMPLE_QOS)
-        self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
-        self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
+        self.create_subscription(Reference, REFERENCE, self._on_reference, RECORD_QOS)
+        self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, RECORD_QOS)
+        self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, RECORD_QOS)
+        self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, RECORD_QOS)
         self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
         DiagnosticsPublisher(self, 'tracking report', self.values['hardware_id'], self._report)
         self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "

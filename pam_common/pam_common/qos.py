@@ -6,6 +6,7 @@
     LATEST_QOS  reference (reference_node's publisher), the driver's ~/applied_command,
                 /diagnostics, /clock (CLOCK_QOS)
     VIEW_QOS    every subscription of a viewer (pam-foxglove)
+    RECORD_QOS  every subscription of a recorder of the loop (tracking_report)
 
 bag_record and bag_play do not use these: they take each topic's QoS from its publishers or
 from the bag.
@@ -31,3 +32,9 @@ CLOCK_QOS = LATEST_QOS
 #: acknowledgement from it, so a slow viewer never holds the stack up (it misses samples instead).
 VIEW_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST,
                       depth=100, durability=DurabilityPolicy.VOLATILE)
+#: A recorder's subscriptions of the 1 kHz streams (tracking_report): SAMPLE_QOS with a queue of
+#: 2000 (2 s at 1 kHz, more in a lockstep run that goes faster than real time): a recorder
+#: starved of CPU for a moment (a busy machine, a collection) catches up instead of losing the
+#: samples that arrived meanwhile. About 0.2 MB per topic at most.
+RECORD_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        depth=2000, durability=DurabilityPolicy.VOLATILE)

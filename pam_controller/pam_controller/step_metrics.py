@@ -64,24 +64,31 @@ class StepReport(NamedTuple):
 
 
 def step_report(t, reference, y, span: float, hold_min: float = 2.0) -> StepReport:
-    """Metrics of every hold of the reference at least hold_min s long (others are skipped)."""
+    """Metrics of every hold of the reference at least hold_min s long (others are skipped).
+
+    Durations come from the time stamps `t` (s), not from sample counts: a run with samples
+    missing or taken in a burst (a real-time loop catching up, a recorder starved for a moment)
+    measures its holds, settling times and last seconds in time. A hold lasts from its first
+    sample to the next hold's first sample (the last one: its last sample plus one median
+    sample period)."""
     t, reference, y = (np.asarray(a, dtype=float) for a in (t, reference, y))
     edges = np.flatnonzero(np.diff(reference) != 0.0) + 1
     starts = np.concatenate([[0], edges])
     ends = np.concatenate([edges, [len(t)]])
-    h = t[1] - t[0] if len(t) > 1 else 1e-3
+    h = float(np.median(np.diff(t))) if len(t) > 1 else 1e-3
     steps = []
     previous = None
     for a, b in zip(starts, ends, strict=True):
-        if (b - a) * h < hold_min:
+        t_end = t[b] if b < len(t) else t[-1] + h
+        if t_end - t[a] < hold_min:
             previous = reference[a]
             continue
         r = reference[a]
         err = np.abs(r - y[a:b])
-        last = slice(max(a, b - round(LAST_SECOND / h)), b)
+        last = slice(max(a, int(np.searchsorted(t, t_end - LAST_SECOND))), b)
         outside = np.flatnonzero(err > SETTLING_BAND * span)
         settling = 0.0 if len(outside) == 0 else (
-            np.inf if outside[-1] == b - a - 1 else (outside[-1] + 1) * h)
+            np.inf if outside[-1] == b - a - 1 else float(t[a + outside[-1] + 1] - t[a]))
         overshoot = 0.0
         if previous is not None and r != previous:
             direction = np.sign(r - previous)

@@ -110,6 +110,29 @@ def test_step_report_metrics():
     assert 0.3 < second.settling_time < 1.0 and second.overshoot == pytest.approx(2.0, rel=1e-2)
 
 
+def test_step_report_measures_time_by_the_stamps():
+    """A run whose first two samples came in a burst (a real-time loop catching up: 50 us apart)
+    and with 300 samples missing in the second hold gives the figures of the uniform run: holds,
+    settling and the last second are measured in time, not in samples (with the first gap as the
+    period, the 4 s second hold below read as 0.2 s and was skipped: pam-demo once reported no
+    step)."""
+    t = np.arange(0, 12.0, 0.001)
+    reference = np.where(t < 8.0, 0.0, 0.2)
+    y = np.where(t < 8.0, 0.0, 0.2 * (1 - np.exp(-(t - 8.0) / 0.3)) + 0.004)
+    uniform = step_report(t, reference, y, ANGLE_SPAN)
+    keep = np.ones(t.size, dtype=bool)
+    keep[9000:9300] = False                       # 0.3 s lost while settling
+    t_gappy = t.copy()
+    t_gappy[0] = t[1] - 50e-6                     # the burst at the start
+    gappy = step_report(t_gappy[keep], reference[keep], y[keep], ANGLE_SPAN)
+    assert len(uniform.steps) == len(gappy.steps) == 2
+    for u, g in zip(uniform.steps, gappy.steps, strict=True):
+        assert g.steady_error == pytest.approx(u.steady_error, rel=1e-6)
+        assert g.settling_time == pytest.approx(u.settling_time, abs=1e-6)
+        assert g.overshoot == pytest.approx(u.overshoot, rel=1e-6)
+    assert step_report(t[:7999], reference[:7999], y[:7999], ANGLE_SPAN).steps[0].t_start == 0.0
+
+
 @pytest.mark.parametrize('mode, span, target, gains', [
     ('angle', ANGLE_SPAN, 3.0, (40.0, 50.0)), ('torque', TORQUE_SPAN, 3.5, (6.0, 8.0))])
 def test_default_gains_meet_the_targets_on_the_batch_loop(mode, span, target, gains):
