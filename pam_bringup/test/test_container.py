@@ -74,11 +74,7 @@ def parameters(probe, fqn: str) -> dict:
                  ListParameters.Request()).result.names
     values = call(probe, GetParameters, f'{fqn}/get_parameters',
                   GetParameters.Request(names=names)).values
-    if len(values) != len(names):
-        # rclpy answers nothing when one of the names is declared without a value (the
-        # estimator's empty-by-default double[] tunings): ask for each name alone
-        values = [call(probe, GetParameters, f'{fqn}/get_parameters',
-                       GetParameters.Request(names=[n])).values for n in names]
+    # every parameter has a value (an empty double[] too: else rclpy answers nothing at all)
     return {n: repr(v) for n, v in zip(names, values, strict=True)}
 
 

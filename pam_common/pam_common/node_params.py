@@ -257,6 +257,18 @@ def unknown_parameter_warning(name: str, specs: Sequence[ParamSpec], prog: str) 
 ARRAY_TYPES = {'double[]': 'DOUBLE_ARRAY', 'integer[]': 'INTEGER_ARRAY'}
 
 
+def _give_empty_value(node, spec: ParamSpec, array_type: str) -> None:
+    """An array parameter declared by its type (empty default, no override) has no value, and
+    rclpy's get_parameters service then answers nothing for a request naming it (`ros2 param
+    dump` fails on the node): give it the empty array of its type, then make it read-only as its
+    spec says (rclpy refuses to set a read-only parameter, so it is declared writable first:
+    see declare_parameters)."""
+    from rclpy.parameter import Parameter
+    node.set_parameters([Parameter(spec.name, getattr(Parameter.Type, array_type), [])])
+    if spec.read_only:
+        node.set_descriptor(spec.name, descriptor(spec))
+
+
 def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """Declare every spec on the node with its descriptor and return the values; call it once,
     with the node's whole table.
@@ -277,7 +289,12 @@ def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
         default = (getattr(Parameter.Type, array_type)
                    if array_type and not spec.default else spec.default)
         try:
-            value = node.declare_parameter(spec.name, default, descriptor(spec)).value
+            writable = descriptor(spec)
+            if array_type and not spec.default:
+                writable.read_only = False      # read-only once it has a value
+            value = node.declare_parameter(spec.name, default, writable).value
+            if value is None and array_type:
+                _give_empty_value(node, spec, array_type)
             values[spec.name] = [] if value is None and array_type else value
         except rclpy.exceptions.InvalidParameterTypeException as exc:
             value = override_value(node, spec.name)
