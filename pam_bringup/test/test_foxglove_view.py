@@ -34,6 +34,7 @@ from pam_common.testing import (
     executable,
     log_lines,
     wait_for_log,
+    wait_until,
 )
 from pam_interfaces.msg import ValveCommand
 
@@ -258,4 +259,49 @@ def test_a_free_port_chosen_by_the_system_is_logged(node_process):
     assert port > 0
     socket.create_connection(('127.0.0.1', port), 5.0).close()
     assert 'serving 1 topic of /joint2' in line, lines
+    assert view.stop() == 0, view.stderr
+
+
+def view_subscriptions(probe) -> set[str]:
+    """The topics foxglove_view subscribes to now, from the ROS graph."""
+    try:
+        return {name for name, _ in probe.node.get_subscriber_names_and_types_by_node(
+            'foxglove_view', '/pam')}
+    except Exception:  # noqa: BLE001 - the node not (yet) in this process's graph
+        return set()
+
+
+async def subscribe_one(url: str, topic: str, probe) -> tuple[set, set]:
+    """Connect, subscribe to the channel of `topic` alone: the topics foxglove_view subscribes
+    to then (once it did), and after the client unsubscribed (once it did)."""
+    import websockets
+    async with websockets.connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:
+        client = FoxgloveClient(ws)
+        await client.read_advertisements(len(TOPICS), 30.0)
+        cid = next(c['id'] for c in client.channels.values() if c['topic'] == topic)
+        await ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [{'id': 7,
+                                                                       'channelId': cid}]}))
+        assert wait_until(lambda: topic in view_subscriptions(probe), TIMEOUT)
+        watched = view_subscriptions(probe)
+        await ws.send(json.dumps({'op': 'unsubscribe', 'subscriptionIds': [7]}))
+        assert wait_until(lambda: topic not in view_subscriptions(probe), TIMEOUT)
+        return watched, view_subscriptions(probe)
+
+
+def test_topics_are_subscribed_only_while_a_client_watches_them(node_process, probe):
+    """No client: pam-foxglove subscribes nothing (no 1 kHz stream received for nobody); a
+    client watching one channel: that topic alone; unsubscribed: nothing again."""
+    port = free_port()
+    view = node_process('pam-foxglove', 'pam_bringup', '--port', str(port), raw=True)
+    url = f'ws://127.0.0.1:{port}'
+    wait_for_log(view, 'INFO', 'pam.foxglove_view', url, timeout=STARTUP_TIMEOUT)
+    def view_publishes() -> bool:
+        try:
+            return bool(probe.node.get_publisher_names_and_types_by_node('foxglove_view', '/pam'))
+        except Exception:  # noqa: BLE001 - the node not (yet) in this process's graph
+            return False
+    assert wait_until(view_publishes, TIMEOUT), 'foxglove_view not in the graph'
+    assert view_subscriptions(probe) == set()
+    watched, after = asyncio.run(subscribe_one(url, '/pam/pressures', probe))
+    assert watched == {'/pam/pressures'} and after == set()
     assert view.stop() == 0, view.stderr
