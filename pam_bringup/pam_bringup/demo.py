@@ -56,6 +56,9 @@ def parse_args(argv):
                '--duration 30).')
     parser.add_argument('--duration', type=float, default=DEFAULT_DURATION, metavar='SECONDS',
                         help=f'how long tracking_report records (default {DEFAULT_DURATION:g})')
+    parser.add_argument('--transient', type=float, default=1.0, metavar='SECONDS',
+                        help='tracking_report also prints the estimation error over t >= '
+                             'SECONDS of its record (default 1)')
     parser.add_argument('--out', type=Path, default=Path('out'), metavar='DIR',
                         help='where the figure (DIR/demo_tracking.png) and the logs (DIR/logs/) '
                              'go (default: out)')
@@ -65,6 +68,8 @@ def parse_args(argv):
     args = parser.parse_args(argv)
     if not 1.0 <= args.duration <= 86400.0:   # tracking_report's range for its duration
         parser.error(f'--duration must be in 1..86400 s, got {args.duration:g}')
+    if not 0.0 <= args.transient <= 86400.0:   # tracking_report's range for its transient
+        parser.error(f'--transient must be in 0..86400 s, got {args.transient:g}')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         parser.error(f'--domain-id must be in 0..232, got {args.domain_id}')
     return args
@@ -119,7 +124,7 @@ def main(argv=None) -> int:
     try:
         report = subprocess.Popen(
             [executables['tracking_report'], '--ros-args', '-p',
-             f'duration:={args.duration:.1f}', '-p',
+             f'duration:={args.duration:.1f}', '-p', f'transient:={args.transient:.3f}', '-p',
              f"plot:={args.out / 'demo_tracking.png'}"], env=env)
         code = report.wait()
         if code != 0:

@@ -3,8 +3,9 @@
 Subscribes reference, joint_measured (the true angle/torque of the simulated rig, or the
 encoder/torque meter of a real one), estimate and valve_command for `duration` seconds, then
 prints per reference step: the reference, the steady-state error against the MEASURED value (%
-of the paper's 40 deg / 4 N m range), the settling time; the estimation error I / M / Q; and
-writes a PNG like the paper's Fig. 14 (reference, measured, estimate; valve voltages; errors).
+of the paper's 40 deg / 4 N m range), the settling time; the estimation error I / M / Q over the
+whole record and after the initial `transient` (default 1 s); and writes a PNG like the paper's
+Fig. 14 (reference, measured, estimate; valve voltages; errors).
 Run `tracking_report --help`.
 """
 
@@ -31,6 +32,10 @@ PARAMETERS = (
     ParamSpec('duration', 64.0, 'double', 's', 'How long to record after the first reference.',
               range=(1.0, 86400.0)),
     ParamSpec('plot', '', 'string', '', "PNG path for the figure; '': no figure."),
+    ParamSpec('transient', 1.0, 'double', 's',
+              'The estimation error is also printed over t >= transient only (t from the first '
+              'sample recorded); the headline line covers the whole record.',
+              range=(0.0, 86400.0)),
     ParamSpec('startup_timeout', 120.0, 'double', 's',
               'Give up if no reference and measurement arrive within this time.',
               range=(1.0, 3600.0)),
@@ -124,7 +129,7 @@ class TrackingReport(Node):
     def report(self, interrupted: bool = False) -> int:
         """Print the report; exit code 0, or 1 (130 if interrupted) when there is nothing to
         report: too few samples, or no reference held long enough to be a step."""
-        from pam_model.metrics import metrics
+        from pam_model.metrics import after_transient, metrics
         nothing = 130 if interrupted else 1
         if len(self.truth) < 100:
             print('tracking_report: too few samples recorded', flush=True)
@@ -148,6 +153,12 @@ class TrackingReport(Node):
         if ok.sum() > 1:
             m = metrics(measured[ok] * scale, estimate[ok] * scale)
             print(f'  estimation error ({ok.sum()} samples): {m.row(" " + unit)}', flush=True)
+            transient = self.values['transient']
+            late = ok & after_transient(t, transient)
+            if late.sum() > 1:
+                m = metrics(measured[late] * scale, estimate[late] * scale)
+                print(f'  estimation error after t >= {transient:g} s ({late.sum()} samples): '
+                      f'{m.row(" " + unit)}', flush=True)
         if self.values['plot']:
             path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
                                  commands, unit, self.values['plot'])

@@ -8,13 +8,21 @@ from pathlib import Path
 
 from pam_bag.bags import BagError
 from pam_model.cli.common import run_cli
-from pam_model.metrics import Metrics
+from pam_model.metrics import DEFAULT_TRANSIENT, Metrics
 from pam_model.model import PamModel
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
 from ..bag_runs import load_run
-from ..evaluation import PAPER_TABLE_III, compare_models, evaluate, format_table, quantity
+from ..evaluation import (
+    PAPER_TABLE_III,
+    STARTS,
+    compare_models,
+    evaluate,
+    format_table,
+    quantity,
+    table_after,
+)
 from ..pam_ukf import TUNINGS
 
 
@@ -43,12 +51,24 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help='valve map table CSV (default: shipped table)')
     parser.add_argument('--tuning', default='default', choices=sorted(TUNINGS),
                         help='UKF Q, R, P(0) preset (default: %(default)s)')
+    parser.add_argument('--transient', type=float, default=DEFAULT_TRANSIENT, metavar='S',
+                        help='also print I, M, Q over t >= S s only, leaving out the initial '
+                             'transient of the filter (default: %(default)g; the headline table '
+                             'covers the whole run, as the paper\'s)')
+    parser.add_argument('--start', default=STARTS[0], choices=STARTS,
+                        help="state both estimators start from: 'measured' (measured angle and "
+                             "velocity, first measured pressures) or 'recorded' (the run's "
+                             'recorded x[0]: the true state of a pam-simulate run; the same as '
+                             "'measured' for a bag) (default: %(default)s)")
     parser.add_argument('--plots', metavar='DIR',
                         help='write one PNG per run into DIR (like the paper\'s Figs. 9-10)')
     parser.add_argument('--compare-models', action='store_true',
                         help='also run the UKF with every friction law (Table III) and force '
                              'model and print their I / M / Q')
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if not (0.0 <= args.transient < float('inf')):
+        parser.error(f'--transient must be a finite number of seconds >= 0, got {args.transient:g}')
+    return args
 
 
 def body(argv=None) -> int:
@@ -61,10 +81,12 @@ def body(argv=None) -> int:
         except BagError as exc:
             raise ValueError(str(exc)) from exc
         kind = quantity(run)
-        table, alone, ukf = evaluate(run, model, tuning)
+        table, alone, ukf = evaluate(run, model, tuning, args.start)
+        after = table_after(run, alone, ukf, args.transient)
         print(f'{path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
-              f'{"locked" if run.locked else "free"} joint, tuning {args.tuning!r}')
-        print(format_table(kind, table))
+              f'{"locked" if run.locked else "free"} joint, tuning {args.tuning!r}, start '
+              f'{args.start!r}')
+        print(format_table(kind, table, after, args.transient))
         beats = all(getattr(table['ukf'], m) < getattr(table['model'], m) for m in 'IMQ')
         print(f'UKF beats the model alone on I, M and Q: {"yes" if beats else "NO"}')
         if args.plots:
@@ -78,7 +100,7 @@ def body(argv=None) -> int:
         if args.compare_models:
             print(f'\nUKF with each model variant ({kind}):')
             print(f'{"variant":<30}       I        M        Q   | paper Table III (online angle)')
-            for label, m in compare_models(run, model, tuning).items():
+            for label, m in compare_models(run, model, tuning, args.start).items():
                 law = label.split(' ', 1)[1]
                 ref = PAPER_TABLE_III.get(law) if label.startswith('friction') else None
                 ref_text = (f'| {ref.I:.2f} / {ref.M:.2f} / {100 * ref.Q:.2f} %'
