@@ -193,7 +193,7 @@ class Emulator:
 
         self.args = args
         self.cal = load(args.calibration)
-        model, _ = build_model(args)
+        model, scenario = build_model(args)
         if args.rate != 1000:
             model = PamModel(params=model.params, valve_map=model.valve_map,
                              friction=model.friction, force=model.force, locked=model.locked,
@@ -203,7 +203,8 @@ class Emulator:
         u0 = tuple(args.initial_command)
         if not all(0.0 <= u <= 10.0 for u in u0):
             raise ValueError(f'--initial-command must be within [0, 10] V, got {list(u0)}')
-        self.rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed, u0=u0)
+        self.rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed, u0=u0,
+                                effects=scenario.effects)
         self.rng = random.Random(args.seed)
         flags = (0 if args.no_encoder else proto.FLAG_ENCODER) | (
             0 if args.no_torque else proto.FLAG_TORQUE)

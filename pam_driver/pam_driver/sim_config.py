@@ -174,7 +174,8 @@ class SimConfig:
         """A fresh pam_model SimulatedRig in the initial state."""
         from pam_model.rig import SimulatedRig
         return SimulatedRig(self.model, self.values['initial_state'], sensor=self.sensor,
-                            seed=self.values['seed'], u0=tuple(self.values['initial_command']))
+                            seed=self.values['seed'], u0=tuple(self.values['initial_command']),
+                            effects=self.scenario.effects if self.scenario is not None else None)
 
 
 def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
@@ -263,7 +264,8 @@ def describe(config: SimConfig) -> list[str]:
         changes += [f'{k} {o:+g}' for k, o in s.offsets.items()]
         source = '' if v['mismatch'] == s.name else f" ({v['mismatch']})"
         mismatch = (f"mismatch: '{s.name}'{source}: "
-                    + (', '.join(changes) if changes else 'no parameter change'))
+                    + (', '.join(changes) if changes else 'no parameter change')
+                    + f'; unmodelled effects: {s.effects.describe()}')
     state = v['initial_state']
     lines = [
         f"plant: parameters {v['plant_parameters']!r}, valve map {v['valve_map']!r}, friction "

@@ -1,5 +1,7 @@
 """Plant mismatch scenarios: a plant parameter set that differs from the nominal one by factors and
-offsets, plus the plant's pressure sensor model, read from YAML (see data/mismatch_mild.yaml).
+offsets, plus the plant's pressure sensor model and its unmodelled effects (pam_model.effects, all
+off unless an `effects:` section sets them), read from YAML (see data/mismatch_mild.yaml and
+data/mismatch_realistic.yaml).
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from .effects import NO_EFFECTS, Effects
 from .parameters import (
     ParameterError,
     Parameters,
@@ -20,18 +23,20 @@ from .parameters import (
 )
 from .sensor import PressureSensor
 
-BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml', 'strong': 'mismatch_strong.yaml'}
+BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml', 'strong': 'mismatch_strong.yaml',
+                     'realistic': 'mismatch_realistic.yaml', 'harsh': 'mismatch_harsh.yaml'}
 
 
 @dataclass(frozen=True)
 class MismatchScenario:
     """factors and offsets by YAML key ('mu_s', 'A1' for both valves, 'pam1.p_w2' for one
-    muscle)."""
+    muscle); the plant's sensor; its unmodelled effects (off by default)."""
 
     name: str
     factors: Mapping[str, float]
     offsets: Mapping[str, float]
     sensor: PressureSensor
+    effects: Effects = NO_EFFECTS
 
     def apply(self, nominal: Parameters) -> Parameters:
         """The plant set: nominal value * factor + offset for every key named."""
@@ -47,7 +52,7 @@ class MismatchScenario:
 
 def scenario_from_dict(data: Mapping, source: str) -> MismatchScenario:
     """Validate the YAML layout of a scenario; errors name the key and the source."""
-    known = {'name', 'factors', 'offsets', 'sensor'}
+    known = {'name', 'factors', 'offsets', 'sensor', 'effects'}
     unknown = sorted(set(data) - known)
     if unknown:
         raise ParameterError(f'{source}: unknown key {unknown[0]!r} '
@@ -70,12 +75,17 @@ def scenario_from_dict(data: Mapping, source: str) -> MismatchScenario:
         sensor = PressureSensor.from_dict(data.get('sensor') or {})
     except ValueError as exc:
         raise ParameterError(f'{source}: sensor: {exc}') from exc
+    try:
+        effects = Effects.from_dict(data.get('effects') or {})
+    except ValueError as exc:
+        raise ParameterError(f'{source}: effects: {exc}') from exc
     return MismatchScenario(name=str(data.get('name', Path(source).stem)),
-                            factors=tables['factors'], offsets=tables['offsets'], sensor=sensor)
+                            factors=tables['factors'], offsets=tables['offsets'], sensor=sensor,
+                            effects=effects)
 
 
 def load_scenario(name_or_path: str | Path) -> MismatchScenario:
-    """A scenario by built-in name ('mild', 'strong') or YAML path."""
+    """A scenario by built-in name (BUILTIN_SCENARIOS) or YAML path."""
     path = (data_path(BUILTIN_SCENARIOS[str(name_or_path)])
             if str(name_or_path) in BUILTIN_SCENARIOS else Path(name_or_path))
     return scenario_from_dict(read_yaml(path), str(path))

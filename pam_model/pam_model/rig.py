@@ -1,7 +1,9 @@
 """SimulatedRig: the plant a simulator node wraps, one sample at a time, with no ROS in it.
 
 It holds the true state, the last valve command (held between samples like real valves), the
-pressure sensor and its random generator, and counts the commands it had to sanitise.
+pressure sensor and its random generator, and counts the commands it had to sanitise. With
+unmodelled effects on (pam_model.effects, issue 17) it steps through an EffectsPlant, which
+carries their internal states; with every effect off it steps the paper's model exactly as before.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .effects import Effects, EffectsPlant
 from .model import PamModel
 from .sensor import PressureSensor
 from .valve_voltage import U_MIN, sanitise_command
@@ -34,7 +37,7 @@ class SimulatedRig:
     """The simulated joint: step() advances one sample period h of the model."""
 
     def __init__(self, model: PamModel, x0, sensor: PressureSensor | None = None, seed: int = 0,
-                 u0=(U_MIN, U_MIN)):
+                 u0=(U_MIN, U_MIN), effects: Effects | None = None):
         x0 = np.asarray(x0, dtype=float)
         if x0.shape != (4,) or not np.all(np.isfinite(x0)):
             raise ValueError(f'initial state must be 4 finite numbers [rad, rad/s, Pa, Pa], '
@@ -50,6 +53,8 @@ class SimulatedRig:
         self.out_of_range_commands = 0
         self.u = (U_MIN, U_MIN)
         self.set_command(*u0)
+        self.plant = (EffectsPlant(model, effects, self.x, self.u)
+                      if effects is not None and effects.active else None)
 
     @property
     def t(self) -> float:
@@ -77,12 +82,24 @@ class SimulatedRig:
 
     def sample(self) -> RigSample:
         """What the sensors read now (draws sensor noise)."""
-        F1, F2, tau = self.model.outputs(self.x)
-        P_meas = self.sensor.measure(self.x[2:], self._rng)
+        if self.plant is None:
+            F1, F2, tau = self.model.outputs(self.x)
+            P_meas = self.sensor.measure(self.x[2:], self._rng)
+        else:
+            F1, F2, tau = self.plant.outputs(self.x)
+            P_meas = self.sensor.measure(self.plant.sensed_pressures(), self._rng)
         return RigSample(t=self.t, x=self.x.copy(), p_measured=P_meas, torque=float(tau),
                          force=(float(F1), float(F2)), u=self.u)
 
     def step(self) -> None:
         """Advance one period h with the held command."""
-        self.x, _, _ = self.model.step(self.x, self.u)
+        self.step_full()
+
+    def step_full(self):
+        """step(), returning the friction torque T_f (N m) and sigma of the step."""
+        if self.plant is None:
+            self.x, T_f, sigma = self.model.step(self.x, self.u)
+        else:
+            self.x, T_f, sigma = self.plant.step(self.x, self.u, self.t)
         self.k += 1
+        return T_f, sigma

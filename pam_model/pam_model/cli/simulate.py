@@ -60,7 +60,7 @@ def body(argv=None) -> int:
             range_min=sensor.range_min, range_max=sensor.range_max)
     U = read_inputs(args.inputs) if args.inputs else validation_profile(args.seed, args.duration).u
     start = time.perf_counter()
-    result = simulate(model, U, args.x0, sensor=sensor, seed=args.seed)
+    result = simulate(model, U, args.x0, sensor=sensor, seed=args.seed, effects=scenario.effects)
     elapsed = time.perf_counter() - start
     path = result.save(args.output)
     duration = len(U) * model.h
