@@ -1,15 +1,18 @@
-"""launch/pam_sim.launch.py starts the nodes of pam_bringup.stack, the list pam-bringup starts,
-each with the params file pam_bringup.params_namespace.stack_params gives for its namespace.
+"""launch/pam_sim.launch.py starts the nodes of pam_bringup.stack, the list pam-bringup starts, each
+with the params file pam_bringup.params_namespace.stack_params gives for its namespace.
 
-With the launch packages (a full ROS 2 install): the launch description is expanded with the
-launch API for every rig and with / without the reference and the controller, and its Node
-actions (package, executable, full name) must be stack_nodes() for the same options; under
+With the launch packages (a full ROS 2 install): the launch description is expanded with the launch
+API for every rig and with / without the reference and the controller, and its Node actions
+(package, executable, full name) must be stack_nodes() for the same options; under
 namespace:=joint2 every Node is /joint2/<node> and its one --params-file gives it the parameters
-the default file gives /pam/<node>. The pinned PyPI wheels have no launch / launch_ros: those
-tests are skipped there, and the ones that always run check that the launch file names no node
-itself (every Node's package, executable and name come from pam_bringup.stack), that its Nodes
-take their namespace and params file from one stack_params call, and what that call gives for
-the launch's own arguments (namespace:=joint2, the relative form the launch argument takes).
+the default file gives /pam/<node>; with composed:=true (the default) one pam_container Node
+without a node name carries the stack's options and the namespace's params file. The launch-API
+tests passed against the Jazzy branches of ros2/launch and ros2/launch_ros (with osrf_pycommon from
+PyPI and an import stand-in for composition_interfaces). The pinned PyPI wheels have no launch /
+launch_ros: those tests are skipped there, and the ones that always run check that the launch file
+names no node itself (every Node's package, executable and name come from pam_bringup.stack), that
+its Nodes take their namespace and params file from one stack_params call, and what that call gives
+for the launch's own arguments (namespace:=joint2, the relative form the launch argument takes).
 """
 
 from __future__ import annotations
@@ -22,7 +25,14 @@ import pytest
 
 from pam_bringup.params_namespace import file_sections, stack_params
 from pam_bringup.params_sections import key_pattern
-from pam_bringup.stack import DEFAULT_NAMESPACE, RIGS, default_params_file, stack_nodes
+from pam_bringup.stack import (
+    CONTAINER,
+    DEFAULT_NAMESPACE,
+    RIGS,
+    container_options,
+    default_params_file,
+    stack_nodes,
+)
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'pam_sim.launch.py'
 NODE_FIELDS = ('package', 'executable', 'name')
@@ -35,7 +45,11 @@ def test_the_launch_file_names_no_node_itself():
     assert calls, 'no Node action in the launch file'
     for call in calls:
         given = {k.arg: k.value for k in call.keywords}
+        container = ast.unparse(given.get('executable', ast.Constant(''))) == 'CONTAINER.name'
         for name in NODE_FIELDS:
+            if container and name == 'name':    # the composing process: no name= (a node-name
+                assert name not in given        # remap would rename every node inside)
+                continue
             assert name in given, f'line {call.lineno}: Node without {name}='
             assert not isinstance(given[name], (ast.Constant, ast.JoinedStr, ast.List)), (
                 f'line {call.lineno}: Node {name}= is written in the launch file, not taken '
@@ -70,7 +84,7 @@ def expanded_nodes(arguments: dict[str, str]) -> list[tuple[str, str, str, list]
         return perform_substitutions(context, normalize_to_list_of_substitutions(value))
 
     context = LaunchContext()
-    context.launch_configurations.update(arguments)
+    context.launch_configurations.update({'composed': 'false', **arguments})
     pending = list(get_launch_description_from_python_launch_file(str(LAUNCH_FILE)).entities)
     found = []
     while pending:
@@ -80,7 +94,8 @@ def expanded_nodes(arguments: dict[str, str]) -> list[tuple[str, str, str, list]
             # what it passes as --params-file / -p (launch_ros keeps it private)
             parameters = list(entity._Node__expanded_parameter_arguments or [])
             found.append((text(entity.node_package), text(entity.node_executable),
-                          entity.node_name, parameters))
+                          entity.node_name, parameters,
+                          [text(a) for a in entity._Node__arguments or []]))
         else:
             pending[:0] = entity.visit(context) or []
     return found
@@ -89,6 +104,30 @@ def expanded_nodes(arguments: dict[str, str]) -> list[tuple[str, str, str, list]
 def launched_nodes(arguments: dict[str, str]) -> list[tuple[str, str, str]]:
     """(package, executable, full node name) of every Node the launch file starts."""
     return [node[:3] for node in expanded_nodes(arguments)]
+
+
+@pytest.mark.parametrize('rig, reference, controller',
+                         list(itertools.product(sorted(RIGS), (True, False), (True, False))))
+@pytest.mark.parametrize('namespace', ['pam', 'joint2'])
+def test_composed_the_launch_file_starts_one_container(rig, reference, controller, namespace):
+    """composed:=true (the default): one pam_container Node, no node name (a remap would
+    rename every node inside), in the namespace, with the stack's options and the namespace's
+    params file (the /pam sections' values for each node of the stack)."""
+    pytest.importorskip('launch_ros', reason='no launch_ros (not in the PyPI wheels): the launch '
+                                             'file is checked on a full ROS 2 install')
+    source = LAUNCH_FILE.parents[1] / 'config' / 'bringup.yaml'
+    arguments = {'rig': rig, 'use_reference': str(reference).lower(),
+                 'use_controller': str(controller).lower(), 'params_file': str(source),
+                 'namespace': namespace, 'composed': 'true'}
+    [(package, executable, fqn, parameters, options)] = expanded_nodes(arguments)
+    assert (package, executable) == (CONTAINER.package, CONTAINER.name)
+    assert fqn == f'/{namespace}/<node_name_unspecified>'
+    assert options == container_options(rig, reference=reference, controller=controller)
+    assert len(parameters) == 1 and parameters[0][1], parameters     # one --params-file
+    for node in stack_nodes(rig, reference=reference, controller=controller):
+        expected = file_parameters(source, f'{DEFAULT_NAMESPACE}/{node.name}')
+        assert expected and file_parameters(parameters[0][0],
+                                            f'/{namespace}/{node.name}') == expected
 
 
 @pytest.mark.parametrize('rig, reference, controller',
@@ -166,7 +205,7 @@ def test_the_launch_file_applies_the_parameters_in_another_namespace(rig, refere
     assert [n[:3] for n in launched] == [
         (n.package, n.name, f'/joint2/{n.name}')
         for n in stack_nodes(rig, reference=reference, controller=controller)]
-    for _, name, fqn, parameters in launched:
+    for _, name, fqn, parameters, _ in launched:
         assert len(parameters) == 1 and parameters[0][1], parameters   # one --params-file
         expected = file_parameters(source, f'{DEFAULT_NAMESPACE}/{name}')
         assert expected and file_parameters(parameters[0][0], fqn) == expected, fqn
