@@ -60,3 +60,17 @@ def test_a_bad_joint_states_rate_is_refused():
     out = _run('driver_node', '--help')
     assert '  joint_states_rate (double, Hz) = 1000.0  [0.0 .. 10000.0]' in out.stdout
     assert "  joint_name (string) = 'seesaw_joint'" in out.stdout
+
+
+def test_emulator_builds_the_realistic_plant_and_refuses_bad_effects(tmp_path):
+    """--mismatch realistic (unmodelled effects, issue 17) starts; a bad effects value is one line
+    naming the key, exit code 2."""
+    out = _run('pam-emulator', '--mismatch', 'realistic', '--duration', '0.5')
+    assert out.returncode == 0, out.stderr
+    assert 'pam-emulator: device:' in out.stdout, out.stdout
+    bad = tmp_path / 'bad_effects.yaml'
+    bad.write_text('name: bad\neffects:\n  valve_time_constant: -0.005\n')
+    out = _run('pam-emulator', '--mismatch', str(bad))
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'effects: valve_time_constant' in lines[0], out.stderr

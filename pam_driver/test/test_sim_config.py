@@ -74,6 +74,14 @@ def test_mild_mismatch_brings_its_sensor_unless_overridden():
     assert explicit.sensor.noise_std == 500.0 and explicit.sensor.bits == 10
 
 
+def test_realistic_mismatch_brings_its_effects_to_the_rig():
+    config = build_config({'mismatch': 'realistic'})
+    assert config.scenario.effects.active
+    assert config.make_rig().plant is not None
+    assert build_config({'mismatch': 'mild'}).make_rig().plant is None
+    assert 'unmodelled effects: valve lag 5 ms' in ' '.join(config.summary)
+
+
 def test_options_reach_the_model():
     config = build_config({'friction_law': 'tondu', 'force_model': 'no_offset',
                            'joint_mode': 'locked', 'rate': 2000.0,

@@ -54,6 +54,17 @@ def test_pam_simulate_writes_a_run(tmp_path):
     assert np.any(data.p_measured != data.x[:, 2:])           # the mild sensor model is applied
 
 
+def test_pam_simulate_runs_the_realistic_plant(tmp_path):
+    """--mismatch realistic: the plant with unmodelled effects (issue 17), sample by sample."""
+    out = tmp_path / 'run.npz'
+    result = run(tool('pam-simulate'), '-o', str(out), '--duration', '2', '--mismatch',
+                 'realistic')
+    assert result.returncode == 0, result.stderr
+    assert "mismatch 'realistic'" in result.stdout and 'hysteresis +-2 N' in result.stdout
+    data = SimulationResult.load(out)
+    assert len(data.t) == 2000 and np.all(np.isfinite(data.table()))
+
+
 def test_pam_simulate_bad_parameter_file(tmp_path):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('r_p: 0.006\n')

@@ -27,8 +27,9 @@ def add_model_arguments(parser: argparse.ArgumentParser, laws: bool = True) -> N
                         help="Table II set: 'default' (corrected), 'printed', or a YAML file "
                              "(default: %(default)s)")
     parser.add_argument('--mismatch', default='', metavar='NAME|FILE',
-                        help="plant mismatch scenario applied to --params: 'mild', 'strong' "
-                             "or a YAML file; its sensor model is used too (default: none)")
+                        help="plant mismatch scenario applied to --params: 'mild', 'strong', "
+                             "'realistic', 'harsh' (with unmodelled effects) or a YAML file; its "
+                             "sensor model and effects are used too (default: none)")
     parser.add_argument('--kappa', default='default', metavar='FILE',
                         help='valve map table CSV (voltage_V,alpha) (default: shipped table)')
     if not laws:

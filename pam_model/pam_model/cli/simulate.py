@@ -71,6 +71,7 @@ def body(argv=None) -> int:
     print(f'  psi {psi.min():+.2f} .. {psi.max():+.2f} deg, '
           f'P {result.x[:, 2:].min() / 1e3:.0f} .. {result.x[:, 2:].max() / 1e3:.0f} kPa, '
           f'tau {result.torque.min():+.3f} .. {result.torque.max():+.3f} N m')
+    print(f'  unmodelled effects: {scenario.effects.describe()}')
     print(f'  sensor noise {sensor.noise_std:g} Pa, {sensor.bits or "no"} bits; '
           f'{elapsed:.3f} s wall ({duration / elapsed:.0f}x real time incl. first-call compile)')
     print(f'  wrote {path}')
