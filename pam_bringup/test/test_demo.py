@@ -17,7 +17,7 @@ def test_help_exits_0():
     run = subprocess.run([executable('pam-demo', 'pam_bringup'), '--help'],
                          capture_output=True, text=True, timeout=30)
     assert run.returncode == 0, run.stderr
-    for option in ('--duration', '--out', '--domain-id'):
+    for option in ('--duration', '--transient', '--out', '--domain-id'):
         assert option in run.stdout
 
 
@@ -42,6 +42,7 @@ def test_the_demo_reports_the_tracking_and_stops_the_stack(node_process, ros_dom
     assert re.search(r'^tracking report: angle mode, \d+\.\d s, \d+ samples', stdout,
                      flags=re.MULTILINE), stdout
     assert 'estimation error' in stdout and f'figure: {out}/demo_tracking.png' in stdout, stdout
+    assert 'estimation error after t >= 1 s' in stdout, stdout     # --transient's default
     assert (out / 'demo_tracking.png').stat().st_size > 10_000
 
     log = (out / 'logs' / 'bringup.log').read_text()
