@@ -9,6 +9,7 @@ import numpy as np
 
 from pam_controller.closed_loop import simulate_closed_loop
 from pam_estimator.pam_ukf import PamUkf
+from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
 from pam_model.sensor import PressureSensor
 from pam_model.simulate import simulate
@@ -18,6 +19,7 @@ for locked in (False, True):
     model = PamModel(locked=locked)
     model.step(np.array(X0), (5.5, 5.5))
     simulate(model, np.full((3, 2), 5.5), X0, sensor=PressureSensor(2000.0, 12))
+    simulate(model, np.full((3, 2), 5.5), X0, effects=load_scenario('realistic').effects)
     PamUkf(model=model, x0=X0).step((4.5e5, 4.5e5), (5.5, 5.5))
     simulate_closed_loop(model, model, np.zeros(3), [(1.0, 1.0)], mode='torque' if locked
                          else 'angle')
