@@ -21,7 +21,7 @@ from numba import njit
 from .model_choices import FrictionLaw
 from .physics import (
     clamp_state,
-    coulomb_level,
+    friction_from_forces,
     gas_constants,
     joint_torque,
     mass_flow,
@@ -49,13 +49,7 @@ def friction_with_hysteresis(psi, psi_dot, P1, P2, h, p, friction_law, force_mod
     if friction_law == FrictionLaw.NONE:
         return 0.0, True
     F1, F2 = forces_with_hysteresis(psi, P1, P2, p, force_model, F_h1, F_h2)
-    T0 = joint_torque(psi, F1, F2, p) - p.k_s * psi
-    z = h / p.J
-    omega_star = psi_dot + z * T0
-    T_c, c = coulomb_level(psi_dot, P1, P2, F1, F2, p, friction_law)
-    if abs(omega_star) > z * T_c:
-        return (math.copysign(T_c, omega_star) + c * omega_star) / (1.0 + z * c), True
-    return omega_star / z, False
+    return friction_from_forces(psi, psi_dot, P1, P2, F1, F2, h, p, friction_law)
 
 
 @njit(cache=True)

@@ -234,6 +234,13 @@ def friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model):
     if friction_law == FrictionLaw.NONE:
         return 0.0, True
     F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
+    return friction_from_forces(psi, psi_dot, P1, P2, F1, F2, h, p, friction_law)
+
+
+@njit(cache=True)
+def friction_from_forces(psi, psi_dot, P1, P2, F1, F2, h, p, friction_law):
+    """friction_torque's Kikuuwe step given the muscle forces F1, F2 (N); friction_law is not
+    NONE. Returns (T_f in N m, sliding flag)."""
     T0 = joint_torque(psi, F1, F2, p) - p.k_s * psi
     z = h / p.J
     omega_star = psi_dot + z * T0

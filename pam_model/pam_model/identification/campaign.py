@@ -47,20 +47,24 @@ def run_name(angle_deg: float | None) -> str:
     return f'locked_{sign}{abs(angle_deg):g}deg'
 
 
-def simulate_campaign(model: PamModel, sensor=None, plan: CampaignPlan = CampaignPlan()):
-    """[(name, SimulationResult)]: one locked run per lock angle, then the free run."""
+def simulate_campaign(model: PamModel, sensor=None, plan: CampaignPlan = CampaignPlan(),
+                      effects=None):
+    """[(name, SimulationResult)]: one locked run per lock angle, then the free run; effects:
+    the plant's unmodelled effects (pam_model.effects.Effects, default none)."""
     runs = []
     locked, free = replace(model, locked=True), replace(model, locked=False)
     for j, angle in enumerate(plan.lock_angles):
         profile = locked_calibration_profile(plan.seed + j, plan.hold, plan.pair_hold,
                                              plan.voltages, model.h)
         x0 = np.array([math.radians(angle), 0.0, INITIAL_PRESSURE, INITIAL_PRESSURE])
-        runs.append((run_name(angle), simulate(locked, profile.u, x0, sensor, plan.seed + j)))
+        runs.append((run_name(angle), simulate(locked, profile.u, x0, sensor, plan.seed + j,
+                                                effects=effects)))
     if plan.free_duration > 0.0:
         profile = free_calibration_profile(plan.seed + 100, plan.free_duration, plan.free_levels,
                                            model.h)
         x0 = np.array([0.0, 0.0, INITIAL_PRESSURE, INITIAL_PRESSURE])
-        runs.append((run_name(None), simulate(free, profile.u, x0, sensor, plan.seed + 100)))
+        runs.append((run_name(None), simulate(free, profile.u, x0, sensor, plan.seed + 100,
+                                               effects=effects)))
     return runs
 
 
