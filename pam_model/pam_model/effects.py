@@ -29,9 +29,11 @@ The equations, t = k h the time of sample k, h the step (s):
   (N/N), f_ij = clip(k_j (s_i - z_ij), -b_j, b_j), its anchor z_ij moved so that the clip holds.
   c(P) = max(P - P_out, 0) / (500 kPa - P_out): the band scales with the gauge pressure, as
   braid-on-bladder friction scales with the contact pressure (c = 1 at 500 kPa abs, 0 vented).
-  Rate independent (it depends on the path of s only). After an input excursion of more than
-  Delta the loop is fully open: its width is 2 B at 500 kPa. Updated at each sample, held over
-  the step; it enters eq. (8) and the friction law's F1 + F2 (eq. 10).
+  Rate independent (it depends on the path of s only). Once s has reversed by 2 Delta the loop
+  is fully open: its width is 2 B at 500 kPa (Delta = 5 N by default: 2 Delta is about 70 kPa of
+  pressure at L0, where dF/dP = 1.45e-4 N/Pa, so the loops of a 200-700 kPa profile are open).
+  Updated at each sample, held over the step; it enters eq. (8) and the friction law's F1 + F2
+  (eq. 10).
 * air temperature (``temperature_drift`` dT, K; ``temperature_drift_time`` t_d, s):
   T(t) = T0 + dT min(t / t_d, 1), linear, then held: T in eq. (4) and in the orifice flows.
 * pressure sensors (``sensor_offset`` [o1, o2] Pa; ``sensor_gain_error`` [g1, g2], fraction;
@@ -68,7 +70,7 @@ class Effects:
     supply_ripple_frequency: float = 0.0       # Hz
     hysteresis_band: float = 0.0               # N (half-width of the loop) at 500 kPa abs
     hysteresis_elements: int = 4               # Maxwell-slip elements per muscle
-    hysteresis_travel: float = 20.0            # N of nominal force until the loop is fully open
+    hysteresis_travel: float = 5.0             # N of nominal force until the loop is fully open
     temperature_drift: float = 0.0             # K
     temperature_drift_time: float = 130.0      # s, over which the drift is reached
     sensor_offset: tuple = (0.0, 0.0)          # Pa, P1 and P2 sensors

@@ -173,6 +173,42 @@ def test_hysteresis_forces_enter_the_rigs_torque():
     assert sample.torque - tau == pytest.approx(model.params.r * (F_h[0] - F_h[1]), rel=1e-9)
 
 
+def locked_loop(charge_volts, vent_volts, band=2.0):
+    """A locked rig with hysteresis only: P1 charged from 200 to 620 kPa, then vented to
+    350 kPa (P2 vented). Returns the hysteresis force F1 - F1(model) where P1 crosses 500 kPa
+    going up and going down."""
+    model = PamModel(locked=True)
+    rig = SimulatedRig(model, [0.0, 0.0, 2.0e5, 2.0e5], effects=Effects(hysteresis_band=band),
+                       u0=(charge_volts, 0.0))
+    crossings = {}
+    for volts, target, rising in ((charge_volts, 6.2e5, True), (vent_volts, 3.5e5, False)):
+        rig.set_command(volts, 0.0)
+        before = rig.sample()
+        while (before.x[2] < target) if rising else (before.x[2] > target):
+            rig.step()
+            now = rig.sample()
+            if rising and before.x[2] < 5.0e5 <= now.x[2]:
+                crossings['up'] = now
+            if not rising and before.x[2] > 5.0e5 >= now.x[2]:
+                crossings['down'] = now
+            before = now
+            assert rig.k < 20000, 'the pressure does not get there'
+    return {key: sample.force[0] - float(model.outputs(sample.x)[0])
+            for key, sample in crossings.items()}, rig.k
+
+
+def test_plant_force_loop_at_500kpa_is_twice_the_band_at_two_speeds():
+    """The torque meter's view in a locked run: at P1 = 500 kPa the rising and the falling branch
+    of F1 differ by 2 B (fully open loop), the same at two charging/venting speeds."""
+    fast, fast_steps = locked_loop(10.0, 0.0)
+    slow, slow_steps = locked_loop(8.5, 2.5)
+    assert slow_steps > 1.3 * fast_steps
+    for loop in (fast, slow):
+        assert loop['up'] == pytest.approx(2.0, rel=5e-3)
+        assert loop['down'] == pytest.approx(-2.0, rel=5e-3)
+        assert loop['up'] - loop['down'] == pytest.approx(4.0, rel=5e-3)
+
+
 def test_temperature_drifts_linearly_then_holds():
     T0 = load_parameters().T
     plant = EffectsPlant(PamModel(), Effects(temperature_drift=3.0, temperature_drift_time=130.0),
