@@ -68,6 +68,9 @@ def test_emulator_builds_the_realistic_plant_and_refuses_bad_effects(tmp_path):
     out = _run('pam-emulator', '--mismatch', 'realistic', '--duration', '0.5')
     assert out.returncode == 0, out.stderr
     assert 'pam-emulator: device:' in out.stdout, out.stdout
+    from pam_driver.emulator import Emulator, build_parser
+    rig = Emulator(build_parser().parse_args(['--mismatch', 'realistic'])).rig
+    assert rig.plant is not None and rig.plant.effects.hysteresis_band == 2.0
     bad = tmp_path / 'bad_effects.yaml'
     bad.write_text('name: bad\neffects:\n  valve_time_constant: -0.005\n')
     out = _run('pam-emulator', '--mismatch', str(bad))
