@@ -159,6 +159,9 @@ class TrackingReport(Node):
                 m = metrics(measured[late] * scale, estimate[late] * scale)
                 print(f'  estimation error after t >= {transient:g} s ({late.sum()} samples): '
                       f'{m.row(" " + unit)}', flush=True)
+            else:
+                print(f'  estimation error after t >= {transient:g} s: fewer than 2 samples '
+                      f'(the record spans {t[-1]:.1f} s)', flush=True)
         if self.values['plot']:
             path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
                                  commands, unit, self.values['plot'])

@@ -11,8 +11,8 @@ Both start from one state, start_state(run, start):
   velocity and the first MEASURED pressures (noisy, as a live filter starts);
 * 'recorded': the run's recorded state x[0] (the behaviour before issue 17): in a bag the same as
   'measured' (a bag's x holds the measured pressures); in a pam-simulate run the TRUE pressures,
-  which no estimator on a rig can know. MODEL.md fixes no initial state; its metrics are the same
-  with either start.
+  which no estimator on a rig can know. MODEL.md fixes no initial state; the metrics' definitions
+  do not depend on the start.
 """
 
 from __future__ import annotations
