@@ -125,6 +125,7 @@ def main(argv=None) -> int:
         report = subprocess.Popen(
             [executables['tracking_report'], '--ros-args', '-p',
              f'duration:={args.duration:.1f}', '-p', f'transient:={args.transient:.3f}', '-p',
+             'start:=step', '-p',
              f"plot:={args.out / 'demo_tracking.png'}"], env=env)
         code = report.wait()
         if code != 0:

@@ -29,8 +29,13 @@ from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, Valve
 
 NODE_NAME = 'tracking_report'
 PARAMETERS = (
-    ParamSpec('duration', 64.0, 'double', 's', 'How long to record after the first reference.',
+    ParamSpec('duration', 64.0, 'double', 's', 'How long to record after the start (see start).',
               range=(1.0, 86400.0)),
+    ParamSpec('start', 'reference', 'string', '',
+              "When the recording starts: 'reference', at the first reference received; "
+              "'step', at the first change of the reference, so that a duration of whole holds "
+              'of a stepped profile records whole holds only, whenever the report started '
+              '(pam-demo), not a last hold cut short.', choices=('reference', 'step')),
     ParamSpec('plot', '', 'string', '', "PNG path for the figure; '': no figure."),
     ParamSpec('transient', 1.0, 'double', 's',
               'The estimation error is also printed over t >= transient only (t from the first '
@@ -56,6 +61,7 @@ class TrackingReport(Node):
         self.estimates = {}         # stamp -> (angle, torque)
         self.commands = {}          # stamp -> (u1, u2)
         self.first_ns = None
+        self.step_ns = None         # stamp of the first change of the reference (start 'step')
         self.finished = Future()
         self.create_subscription(Reference, REFERENCE, self._on_reference, RECORD_QOS)
         self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, RECORD_QOS)
@@ -64,7 +70,8 @@ class TrackingReport(Node):
         self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
         DiagnosticsPublisher(self, 'tracking report', self.values['hardware_id'], self._report)
         self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
-                               'first reference')
+                               + ('first reference' if self.values['start'] == 'reference' else
+                                  'first change of the reference'))
 
     def _on_timeout(self):
         self.destroy_timer(self._timeout)
@@ -73,11 +80,16 @@ class TrackingReport(Node):
             self.finished.set_result(1)
 
     def _on_reference(self, msg: Reference):
-        self.references.append((stamp_ns(msg.header.stamp), msg.mode, msg.value))
+        stamp = stamp_ns(msg.header.stamp)
+        if self.step_ns is None and self.references and msg.value != self.references[-1][2]:
+            self.step_ns = stamp
+        self.references.append((stamp, msg.mode, msg.value))
 
     def _on_truth(self, msg: JointMeasurement):
         t = stamp_ns(msg.header.stamp)
         if not self.references:
+            return
+        if self.values['start'] == 'step' and (self.step_ns is None or t < self.step_ns):
             return
         if self.first_ns is None:
             self.first_ns = t

@@ -69,3 +69,32 @@ def test_the_estimation_error_is_printed_whole_and_after_the_transient(node_proc
     assert float(whole[2]) == pytest.approx(math.degrees(0.1), rel=1e-3), report.stdout
     assert float(after[2]) == pytest.approx(math.degrees(0.01), rel=1e-3), report.stdout
     assert int(after[1]) < int(whole[1]), report.stdout
+
+
+def test_start_at_the_first_step_records_whole_holds(node_process, probe):
+    """start:=step: the recording begins at the first change of the reference (1 s into the
+    feed), not at the first reference: 2 s recorded are the hold at 0.2 from its first sample."""
+    report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=2.0',
+                          '-p', 'start:=step', '-p', 'transient:=0.0')
+    references = probe.publisher(Reference, '/pam/reference')
+    truth = probe.publisher(JointMeasurement, '/pam/joint_measured')
+    assert wait_until(lambda: references.get_subscription_count() > 0
+                      and truth.get_subscription_count() > 0, 60.0), report.stderr
+    k = 0
+    end = time.monotonic() + 60.0
+    while report.alive() and time.monotonic() < end and k <= 3500:
+        stamp = ns_stamp(1_000_000_000 + k * 1_000_000)
+        if k % 10 == 0:                                # 100 Hz, stamped like reference_node
+            value = 0.0 if k < 1000 else 0.2
+            ref = Reference(mode=Reference.ANGLE, value=value)
+            ref.header.stamp = stamp
+            references.publish(ref)
+        msg = JointMeasurement(angle=0.0 if k < 1000 else 0.2 - 0.1 * math.exp(-(k - 1000) / 50))
+        msg.header.stamp = stamp
+        truth.publish(msg)
+        k += 1
+        time.sleep(0.0005)
+    assert report.wait_exit(30.0) == 0, report.stdout + report.stderr
+    assert 'after the first change of the reference' in report.stderr, report.stderr
+    steps = re.findall(r'^\s+(\d+\.\d)\s+(-?\d+\.\d+)deg', report.stdout, re.MULTILINE)
+    assert steps == [('0.0', f'{math.degrees(0.2):.2f}')], report.stdout
