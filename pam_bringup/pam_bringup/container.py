@@ -45,7 +45,8 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f'{PROG} [-h] [--rig {{{",".join(sorted(RIGS))}}}] [--no-reference] '
-              '[--no-controller] [--namespace NS [NS ...]] [--ros-args ...]',
+              '[--no-controller] [--namespace NS [NS ...]] [--params-file FILE] '
+              '[--ros-args ...]',
         description='The nodes of the PAM stack (the rig, ukf_node, reference_node, pi_node) '
                     'composed in one process on one executor: the same node classes, topics, '
                     'parameters, services and diagnostics as the separate executables. With '
@@ -55,7 +56,8 @@ def parser() -> argparse.ArgumentParser:
                'namespace), -p NAME:=VALUE (every node that declares NAME), -r __ns:=/NS (one '
                'stack only; with --namespace, leave it out), --log-level.\n\nExamples:\n'
                f'  {PROG} --ros-args -r __ns:=/pam --params-file bringup.yaml\n'
-               f'  {PROG} --namespace /joint1 /joint2 --ros-args --params-file joints.yaml')
+               f'  {PROG} --namespace /joint1 /joint2 --params-file bringup.yaml\n'
+               f'  {PROG} --ros-args -r __ns:=/pam -p thread_priority:=80   # docs/realtime.md')
     p.add_argument('--rig', choices=sorted(RIGS), default='sim',
                    help='sim: sim_node, the simulated rig; driver: driver_node (default sim)')
     p.add_argument('--no-reference', action='store_true', help='without reference_node')
