@@ -63,13 +63,15 @@ def body(argv=None) -> int:
     model, scenario = build_model(args)
     plan = CampaignPlan(lock_angles=args.angles, hold=args.hold, pair_hold=args.pair_hold,
                         voltages=args.voltages, free_duration=args.free_duration, seed=args.seed)
-    runs = simulate_campaign(model, scenario.sensor, plan)
+    # the scenario's unmodelled effects too (issue 17: a 'realistic' rig), not only its sensor
+    runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects)
     if args.validation > 0.0:
         profile = validation_profile(args.seed + 1, args.validation, model.h)
         x0 = np.array([0.0, 0.0, 4.5e5, 4.5e5])
         for mode, locked in (('free', False), ('locked', True)):
             runs.append((f'validation_{mode}', simulate(replace(model, locked=locked), profile.u,
-                                                        x0, scenario.sensor, args.seed + 1)))
+                                                        x0, scenario.sensor, args.seed + 1,
+                                                        effects=scenario.effects)))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for name, run in runs:
