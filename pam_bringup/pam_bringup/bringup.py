@@ -1,8 +1,10 @@
-"""pam-bringup: the whole PAM stack as separate processes, from one parameter file.
+"""pam-bringup: the whole PAM stack, composed in one process or as separate ones, from one
+parameter file.
 
 A small stand-in for `ros2 launch` (not installable with the pinned PyPI wheels): starts the
 nodes of pam_bringup.stack (the rig: sim_node, or driver_node with --rig driver; ukf_node;
-reference_node; pi_node), each as
+reference_node; pi_node), by default composed in one process (pam_container, options for the
+same node list before --ros-args), with --separate each as
 
     <exe> --ros-args -r __ns:=<namespace> --params-file <file>
 
