@@ -1,8 +1,9 @@
 """The stack's QoS profiles: the one place they are written (the topic names: pam_common.topics).
 
-    SAMPLE_QOS  pressures, joint_measured, valve_command, estimate, controller_state (both
-                ends), joint_states and estimate/joint_states (publishers), and every
-                subscription of the 1 kHz loop (pi_node's reference too)
+    SAMPLE_QOS  pressures, supply_pressure, joint_measured, valve_command, estimate,
+                controller_state (both ends), joint_states and estimate/joint_states
+                (publishers), and every subscription of the 1 kHz loop (pi_node's reference
+                too)
     LATEST_QOS  reference (reference_node's publisher), the driver's ~/applied_command,
                 /diagnostics, /clock (CLOCK_QOS)
     VIEW_QOS    every subscription of a viewer (pam-foxglove)

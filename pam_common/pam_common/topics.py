@@ -8,6 +8,11 @@ without rclpy use these too.
 
     topic              type                              published by
     pressures          pam_interfaces/Pressures          sim_node, driver_node
+    supply_pressure    sensor_msgs/FluidPressure         sim_node (publish_supply_pressure),
+                                                         driver_node (a board with the supply
+                                                         transducer): P_tank in Pa abs,
+                                                         header.stamp = its pressures sample's,
+                                                         variance Pa^2 (0: unknown)
     joint_measured     pam_interfaces/JointMeasurement   sim_node, driver_node
     valve_command      pam_interfaces/ValveCommand       pi_node, profile_player
     estimate           pam_interfaces/JointEstimate      ukf_node
@@ -28,6 +33,7 @@ from __future__ import annotations
 DEFAULT_NAMESPACE = '/pam'
 
 PRESSURES = 'pressures'
+SUPPLY_PRESSURE = 'supply_pressure'
 JOINT_MEASURED = 'joint_measured'
 VALVE_COMMAND = 'valve_command'
 ESTIMATE = 'estimate'
