@@ -13,17 +13,23 @@ Both start from one state, start_state(run, start):
   'measured' (a bag's x holds the measured pressures); in a pam-simulate run the TRUE pressures,
   which no estimator on a rig can know. MODEL.md fixes no initial state; the metrics' definitions
   do not depend on the start.
+
+Both may carry the estimator's model extensions (pam_model.model_extensions,
+docs/model_extensions.md): the UKF all of them, the model alone all but the sensors' offset and
+gain (it reads no pressure); the UKF may also read a measured supply pressure.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pam_model.effects import Effects
 from pam_model.metrics import DEFAULT_TRANSIENT, Metrics, metrics, metrics_after
 from pam_model.model import PamModel
 from pam_model.model_choices import ForceModel, FrictionLaw
+from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.simulate import SimulationResult, simulate
 
 from .pam_ukf import DEFAULT_TUNING, PamUkf, UkfTuning
@@ -69,27 +75,40 @@ def start_state(run: SimulationResult, start: str = STARTS[0]) -> np.ndarray:
 
 
 def run_ukf(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING,
-            x0=None) -> Estimates:
+            x0=None, extensions: Effects = NO_EXTENSIONS, supply=None) -> Estimates:
     """The UKF over a run: at sample k it predicts with u[k-1] and updates with p_measured[k].
 
-    x0: its initial state, default start_state(run)."""
+    x0: its initial state, default start_state(run); extensions: its model's
+    (pam_model.model_extensions); supply (N,): the measured supply pressure (Pa abs) at each
+    sample, P_tank of the step to it (None: the model's P_tank)."""
     x0 = start_state(run) if x0 is None else x0
-    ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0))
+    ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0), extensions=extensions)
     n = len(run.t)
     X = np.empty((n, 4))
     tau = np.empty(n)
     X[0] = ukf.x
     tau[0] = model.outputs(ukf.x)[2]
     for k in range(1, n):
-        out = ukf.step(run.p_measured[k], run.u[k - 1])
+        out = ukf.step(run.p_measured[k], run.u[k - 1],
+                       None if supply is None else float(supply[k - 1]))
         X[k] = out.x
         tau[k] = out.torque
     return Estimates(X, tau)
 
 
-def run_model_alone(run: SimulationResult, model: PamModel, x0=None) -> Estimates:
-    """The model open loop from the run's commands, from x0 (default start_state(run))."""
-    alone = simulate(model, run.u, start_state(run) if x0 is None else x0)
+def model_alone_effects(extensions: Effects) -> Effects:
+    """The extensions the model alone carries: all but the sensors' (it reads no pressure, so a
+    sensor's offset or gain error changes nothing it computes)."""
+    return replace(extensions, sensor_offset=(0.0, 0.0), sensor_gain_error=(0.0, 0.0))
+
+
+def run_model_alone(run: SimulationResult, model: PamModel, x0=None,
+                    extensions: Effects = NO_EXTENSIONS) -> Estimates:
+    """The model open loop from the run's commands, from x0 (default start_state(run)), with
+    the extensions' valve lag, dead volume and hysteresis (pam_model.effects.EffectsPlant, through
+    simulate); the paper's model (one compiled loop) without."""
+    alone = simulate(model, run.u, start_state(run) if x0 is None else x0,
+                     effects=model_alone_effects(extensions))
     return Estimates(alone.x, alone.torque)
 
 
@@ -106,14 +125,15 @@ def measured_and_estimated(run: SimulationResult, est: Estimates):
 
 
 def evaluate(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING,
-             start: str = STARTS[0]):
+             start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None):
     """{'model': Metrics, 'ukf': Metrics} (whole run) and the two Estimates for one recorded
-    run; both estimators start from start_state(run, start)."""
+    run; both estimators start from start_state(run, start) and carry the extensions; supply:
+    see run_ukf (the UKF's only)."""
     model = PamModel(params=model.params, valve_map=model.valve_map, friction=model.friction,
                      force=model.force, locked=run.locked, h=model.h)
     x0 = start_state(run, start)
-    alone = run_model_alone(run, model, x0)
-    ukf = run_ukf(run, model, tuning, x0)
+    alone = run_model_alone(run, model, x0, extensions)
+    ukf = run_ukf(run, model, tuning, x0, extensions, supply)
     table = {name: metrics(*measured_and_estimated(run, est))
              for name, est in (('model', alone), ('ukf', ukf))}
     return table, alone, ukf
@@ -127,21 +147,22 @@ def table_after(run: SimulationResult, alone: Estimates, ukf: Estimates,
 
 
 def compare_models(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING,
-                   start: str = STARTS[0]):
-    """The UKF with each friction law (Table III) and each force model: {label: Metrics}."""
+                   start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None):
+    """The UKF with each friction law (Table III) and each force model: {label: Metrics}
+    (each with the extensions and the supply of run_ukf)."""
     x0 = start_state(run, start)
     results = {}
     for friction in FrictionLaw:
         variant = PamModel(params=model.params, valve_map=model.valve_map, friction=friction,
                            force=ForceModel.PROPOSED, locked=run.locked, h=model.h)
         results[f'friction {friction}'] = metrics(
-            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0)))
+            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0, extensions, supply)))
     for force in (f for f in ForceModel if f is not ForceModel.PROPOSED):
         variant = PamModel(params=model.params, valve_map=model.valve_map,
                            friction=FrictionLaw.PROPOSED, force=force, locked=run.locked,
                            h=model.h)
         results[f'force {force}'] = metrics(
-            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0)))
+            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0, extensions, supply)))
     return results
 
 

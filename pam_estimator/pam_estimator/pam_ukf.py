@@ -13,27 +13,36 @@ input u(k-1) = the valve voltages (V) held over the step just ended. One step:
    the posterior sigma points, and the subsystem index sigma.
 A Cholesky factorisation that fails falls back to an eigenvalue clip (counted). Locked joint: the
 angle is held at the lock angle with a tiny variance, psi_dot = 0.
-The whole step is one compiled numba kernel (see the README for why).
+The whole step is one compiled numba kernel (see the README for why). With model extensions or
+a measured supply pressure (docs/model_extensions.md) it is two kernels around the valve lag and
+the hysteresis memory (numpy, per sample); without, ukf_step as it always was.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from pam_model.effects import Effects, MaxwellSlip, ValveLag
+from pam_model.effects_physics import (
+    forces_with_hysteresis,
+    friction_with_hysteresis,
+    step_with_effects,
+)
 from pam_model.model import PamModel
+from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import (
-    friction_torque,
     joint_torque,
     muscle_forces,
     rk4_step,
     subsystem_index,
     valve_opening,
 )
+from pam_model.valve_voltage import U_MAX, U_MIN
 
 from .unscented import (
     julier_sigma_points,
@@ -85,17 +94,22 @@ INFO_FIELDS = ('nis', 'valid', 'accepted', 'repairs', 'force1', 'force2', 'torqu
 
 
 @njit(cache=True)
-def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_law, force_model,
-             locked, lock_angle, nis_gate, y_min, y_max, info):
-    """One predict + update, in place: x (4,) and P (4, 4) become the posterior and info (10,)
-    receives INFO_FIELDS (nis is 0 when the measurement was not valid). If the posterior were
-    not finite, x and P are left unchanged and info[9] = 0. p_array: Parameters record array."""
-    p = p_array[0]
+def propagate_with_effects(sigmas, alpha1, alpha2, h, p_array, friction_law, force_model, locked,
+                           V_d, F_h1, F_h2):
+    """propagate() through pam_model.effects_physics.step_with_effects: dead volume V_d (m^3) in
+    eq. (4), hysteresis forces F_h1, F_h2 (N) held over the step, the same for every point."""
+    out = np.empty_like(sigmas)
+    for i in range(sigmas.shape[0]):
+        step_with_effects(sigmas[i], alpha1, alpha2, h, p_array, friction_law, force_model,
+                          locked, V_d, F_h1, F_h2, out[i])
+    return out
+
+
+@njit(cache=True)
+def correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info):
+    """Steps 2-4 of the module doc from the propagated sigma points: the posterior (x, P);
+    info receives nis, valid, accepted and the repairs of this part."""
     W = julier_weights(N_STATE, KAPPA)
-    alpha1 = valve_opening(u_prev[0], kappa_u, kappa_alpha)
-    alpha2 = valve_opening(u_prev[1], kappa_u, kappa_alpha)
-    sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
-    sigmas_f = propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked)
     x_prior, P_prior = unscented_transform(sigmas_f, W, Q)
     P_prior = symmetrise(P_prior)
     if locked:
@@ -114,37 +128,86 @@ def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_l
             nis = 0.0
     if locked:
         x_post, P_post = hold_locked(x_post, P_post, lock_angle)
-    # outputs at the estimate, torque variance through the posterior sigma points
-    F1, F2 = muscle_forces(x_post[0], x_post[2], x_post[3], p, force_model)
+    info[0] = nis
+    info[1] = valid
+    info[2] = accepted
+    info[3] = int(rep2)
+    return x_post, P_post
+
+
+@njit(cache=True)
+def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model, locked, F_h1,
+                     F_h2, info):
+    """Step 5 at the posterior, with the hysteresis forces F_h1, F_h2 (N; 0 in the paper's
+    model) in eq. (6): forces, torque, its variance, sigma into info; x, P become the posterior
+    if it is finite (info[9])."""
+    p = p_array[0]
+    W = julier_weights(N_STATE, KAPPA)
+    F1, F2 = forces_with_hysteresis(x_post[0], x_post[2], x_post[3], p, force_model, F_h1, F_h2)
     tau = joint_torque(x_post[0], F1, F2, p)
     sigmas_o, rep3 = julier_sigma_points(x_post, P_post, KAPPA)
     taus = np.empty(sigmas_o.shape[0])
     for i in range(sigmas_o.shape[0]):
-        f1, f2 = muscle_forces(sigmas_o[i, 0], sigmas_o[i, 2], sigmas_o[i, 3], p, force_model)
+        f1, f2 = forces_with_hysteresis(sigmas_o[i, 0], sigmas_o[i, 2], sigmas_o[i, 3], p,
+                                        force_model, F_h1, F_h2)
         taus[i] = joint_torque(sigmas_o[i, 0], f1, f2, p)
     tau_mean = W @ taus
     tau_variance = W @ ((taus - tau_mean) ** 2)
     if locked:
         sliding = False
     else:
-        _, sliding = friction_torque(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
-                                     friction_law, force_model)
+        _, sliding = friction_with_hysteresis(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
+                                              friction_law, force_model, F_h1, F_h2)
     sigma = subsystem_index(sliding, x_post[2], x_post[3], p)
     finite = np.all(np.isfinite(x_post)) and np.all(np.isfinite(P_post)) and np.isfinite(
         tau) and np.isfinite(tau_variance)
     if finite:
         x[:] = x_post
         P[:, :] = P_post
-    info[0] = nis
-    info[1] = valid
-    info[2] = accepted
-    info[3] = int(rep1) + int(rep2) + int(rep3)
+    info[3] += int(rep3)
     info[4] = F1
     info[5] = F2
     info[6] = tau
     info[7] = tau_variance
     info[8] = sigma
     info[9] = finite
+
+
+@njit(cache=True)
+def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_law, force_model,
+             locked, lock_angle, nis_gate, y_min, y_max, info):
+    """One predict + update of the paper's model, in place: x (4,) and P (4, 4) become the
+    posterior and info (10,) receives INFO_FIELDS (nis is 0 when the measurement was not valid).
+    If the posterior were not finite, x and P are left unchanged and info[9] = 0. p_array:
+    Parameters record array."""
+    p = p_array[0]
+    alpha1 = valve_opening(u_prev[0], kappa_u, kappa_alpha)
+    alpha2 = valve_opening(u_prev[1], kappa_u, kappa_alpha)
+    sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
+    sigmas_f = propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked)
+    x_post, P_post = correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info)
+    info[3] += int(rep1)
+    estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model, locked, 0.0,
+                     0.0, info)
+
+
+@njit(cache=True)
+def predict_correct_with_effects(x, P, alpha1, alpha2, y, Q, R, h, p_array, friction_law,
+                                 force_model, locked, lock_angle, nis_gate, info, V_d, F_h1,
+                                 F_h2):
+    """ukf_step's predict and update with the estimator's extensions: openings alpha already
+    lagged, dead volume V_d (m^3), hysteresis forces F_h1, F_h2 (N) held over the step, P_tank
+    of the step in p_array; y already corrected for the sensors (non-finite = no update).
+    Returns (x_post, P_post, F1, F2): the posterior and its nominal eq. (6) forces (N), which
+    drive the hysteresis memory."""
+    sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
+    sigmas_f = propagate_with_effects(sigmas, alpha1, alpha2, h, p_array, friction_law,
+                                      force_model, locked, V_d, F_h1, F_h2)
+    x_post, P_post = correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, -np.inf, np.inf,
+                             info)
+    info[3] += int(rep1)
+    F1, F2 = muscle_forces(x_post[0], x_post[2], x_post[3], p_array[0], force_model)
+    return x_post, P_post, F1, F2
 
 
 class UkfTuning(NamedTuple):
@@ -193,6 +256,12 @@ class PamUkf:
 
     y_range (Pa abs): measurements outside are rejected (sensor fault) and counted; nis_gate > 0
     rejects innovations with a larger NIS (chi-square with 2 degrees of freedom: 13.8 is 0.1 %).
+    extensions: the model's extensions (pam_model.model_extensions; docs/model_extensions.md),
+    the paper's model by default (NO_EXTENSIONS: the same numbers as before, bit for bit):
+    valve lag of the known commands (pam_model.effects.ValveLag), dead volume V_d in eq. (4),
+    Maxwell-slip force hysteresis driven by the posterior's eq. (6) forces and held over the next
+    step (the same for every sigma point; in the outputs), sensor offset o and gain error g: the
+    reading y becomes (y - o) / (1 + g) before the update (the range check is on y).
     """
 
     model: PamModel = field(default_factory=PamModel)
@@ -200,6 +269,7 @@ class PamUkf:
     x0: tuple = (0.0, 0.0, 4.5e5, 4.5e5)
     nis_gate: float = 0.0
     y_range: tuple = (1.0e3, 2.0e6)
+    extensions: Effects = NO_EXTENSIONS
 
     def __post_init__(self):
         self.tuning = UkfTuning(*self.tuning).validate()
@@ -209,6 +279,15 @@ class PamUkf:
             raise ValueError(f'nis_gate must be >= 0 (0 = off), got {self.nis_gate!r}')
         if not (self.y_range[0] < self.y_range[1]):
             raise ValueError(f'y_range must be (min, max) with min < max, got {self.y_range!r}')
+        refused = [f.name for f in fields(Effects) if f.name not in ESTIMATOR_FIELDS
+                   and getattr(self.extensions, f.name) != getattr(NO_EXTENSIONS, f.name)]
+        if refused:
+            raise ValueError(f'extensions: {", ".join(refused)} not allowed in an estimator '
+                             f'(allowed: {", ".join(ESTIMATOR_FIELDS)})')
+        e = self.extensions
+        self._sensor_gain = 1.0 + np.asarray(e.sensor_gain_error)
+        self._sensor_offset = np.asarray(e.sensor_offset)
+        self._record = self.model.params_array.copy()    # P_tank of a step written here
         self.reset()
 
     def reset(self, x0=None, P0=None) -> None:
@@ -228,17 +307,31 @@ class PamUkf:
         self.rejected_samples = 0     # invalid measurements (non-finite, out of range)
         self.gated_samples = 0        # innovations rejected by the NIS gate
         self.repairs = 0              # covariance repairs (Cholesky fallback)
+        e = self.extensions
+        self._valve = None            # ValveLag, started by the first command
+        self._hysteresis = None
+        self.F_h = np.zeros(2)        # N, hysteresis forces held over the next step
+        if e.hysteresis_band > 0.0:
+            self._hysteresis = MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
+                                           e.hysteresis_travel, self.model.params.P_out)
+            self._hysteresis.update(self.model.outputs(x)[:2], x[2:])     # relaxed: F_h = 0
 
-    def step(self, y, u_prev) -> UkfOutput:
-        """Predict with u_prev (V, the command held since the last sample), update with y (Pa)."""
+    def step(self, y, u_prev, supply=None) -> UkfOutput:
+        """Predict with u_prev (V, the command held since the last sample), update with y (Pa).
+
+        supply: the measured supply pressure (Pa abs), P_tank of this step when finite and > 0;
+        None (or not finite): the model's P_tank."""
         y = np.asarray(y, dtype=float)
         u_prev = np.asarray(u_prev, dtype=float)
         if y.shape != (2,) or u_prev.shape != (2,):
             raise ValueError('y needs 2 pressures (Pa) and u_prev 2 voltages (V)')
         m, info = self.model, self._info
-        ukf_step(self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params_array, m.valve_map.u,
-                 m.valve_map.alpha, m.friction_code, m.force_code, m.locked, self.lock_angle,
-                 self.nis_gate, self.y_range[0], self.y_range[1], info)
+        if self.extensions.active or supply is not None:
+            self._step_with_effects(y, u_prev, supply)
+        else:
+            ukf_step(self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params_array,
+                     m.valve_map.u, m.valve_map.alpha, m.friction_code, m.force_code, m.locked,
+                     self.lock_angle, self.nis_gate, self.y_range[0], self.y_range[1], info)
         nis, valid, accepted, repairs, F1, F2, tau, tau_var, sigma, finite = info.tolist()
         if not finite:
             # cannot happen with the model's guards; never hand out NaN if it ever does:
@@ -256,3 +349,31 @@ class PamUkf:
         return UkfOutput(x=self.x.copy(), P=self.P.copy(), force1=F1, force2=F2, torque=tau,
                          torque_variance=tau_var, subsystem=int(sigma), nis=nis,
                          update_skipped=not accepted)
+
+    def _step_with_effects(self, y, u_prev, supply) -> None:
+        """ukf_step with the extensions and the measured supply: fills self._info."""
+        m, e, info = self.model, self.extensions, self._info
+        u = np.clip(np.nan_to_num(u_prev, nan=U_MIN, posinf=U_MIN, neginf=U_MIN), U_MIN, U_MAX)
+        if self._valve is None:
+            self._valve = ValveLag(m.valve_map, m.h, e.valve_time_constant, u)
+        alpha1, alpha2 = self._valve.openings(u)
+        P_tank = m.params.P_tank
+        if supply is not None and math.isfinite(supply) and supply > 0.0:
+            P_tank = float(supply)
+        self._record['P_tank'] = P_tank
+        lo, hi = self.y_range
+        if np.all(np.isfinite(y)) and np.all((lo <= y) & (y <= hi)):
+            y = (y - self._sensor_offset) / self._sensor_gain
+        else:
+            y = np.full(2, np.nan)                  # a faulty raw reading: no update
+        x_post, P_post, F1, F2 = predict_correct_with_effects(
+            self.x, self.P, alpha1, alpha2, y, self._Q, self._R, m.h, self._record,
+            m.friction_code, m.force_code, m.locked, self.lock_angle, self.nis_gate, info,
+            e.dead_volume, self.F_h[0], self.F_h[1])
+        F_h = self.F_h
+        if self._hysteresis is not None and np.all(np.isfinite(x_post)):
+            F_h = self._hysteresis.update((F1, F2), x_post[2:])
+        estimate_outputs(self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code,
+                         m.force_code, m.locked, F_h[0], F_h[1], info)
+        if info[9]:
+            self.F_h = F_h

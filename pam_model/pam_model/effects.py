@@ -199,6 +199,30 @@ class MaxwellSlip:
         return force.sum(axis=1)
 
 
+class ValveLag:
+    """The valve spool's first-order lag of the module docstring for both valves: the plant's
+    (EffectsPlant) and the estimator's model (pam_estimator.pam_ukf, which knows the commands).
+
+    valve_map (kappa), h (s), tau (s, 0 = no lag), u0 (2,) V the voltages held before."""
+
+    def __init__(self, valve_map, h: float, tau: float, u0):
+        self.valve_map = valve_map
+        self.decay = lag_factor(h, tau)
+        self.mean_weight = (tau / h * (1.0 - self.decay)) if tau > 0.0 else 0.0
+        self.u_filtered = np.clip(np.nan_to_num(np.asarray(u0, dtype=float), nan=U_MIN),
+                                  U_MIN, U_MAX)
+
+    def openings(self, u) -> tuple[float, float]:
+        """Openings alpha (2,) over the coming step for the held (sanitised) voltages u (V);
+        advances the lag by one step."""
+        vm = self.valve_map
+        u = np.asarray(u, dtype=float)
+        mean = u + (self.u_filtered - u) * self.mean_weight
+        self.u_filtered = u + (self.u_filtered - u) * self.decay
+        return (valve_opening(float(mean[0]), vm.u, vm.alpha),
+                valve_opening(float(mean[1]), vm.u, vm.alpha))
+
+
 class EffectsPlant:
     """The internal states of the effects (filtered valve voltages, hysteresis elements, sensor
     filters) and the step of a plant with effects; SimulatedRig and simulate() drive it."""
@@ -211,12 +235,8 @@ class EffectsPlant:
         self.record = model.params_array.copy()
         g = gas_constants(p)
         self.m_ref = (p.A1_1 + p.A1_2) * p.P_tank * g.C_ch / g.sqrt_T
-        self.valve_decay = lag_factor(model.h, effects.valve_time_constant)
-        tau = effects.valve_time_constant
-        self.valve_mean = (tau / model.h * (1.0 - self.valve_decay)) if tau > 0.0 else 0.0
+        self.valve = ValveLag(model.valve_map, model.h, effects.valve_time_constant, u0)
         self.sensor_decay = lag_factor(model.h, effects.sensor_time_constant)
-        self.u_filtered = np.clip(np.nan_to_num(np.asarray(u0, dtype=float), nan=U_MIN),
-                                  U_MIN, U_MAX)
         self.gain = 1.0 + np.asarray(effects.sensor_gain_error)
         self.offset = np.asarray(effects.sensor_offset)
         self.hysteresis = (MaxwellSlip(effects.hysteresis_band, effects.hysteresis_elements,
@@ -248,15 +268,15 @@ class EffectsPlant:
             P_tank += e.supply_ripple * math.sin(2.0 * math.pi * e.supply_ripple_frequency * t)
         return P_tank
 
+    @property
+    def u_filtered(self) -> np.ndarray:
+        """The valves' lagged voltages u_f (V)."""
+        return self.valve.u_filtered
+
     def openings(self, u) -> tuple[float, float]:
         """Openings over the coming step for the held (sanitised) voltages u (V); advances the
         valve lag by one step."""
-        vm = self.model.valve_map
-        u = np.asarray(u, dtype=float)
-        mean = u + (self.u_filtered - u) * self.valve_mean
-        self.u_filtered = u + (self.u_filtered - u) * self.valve_decay
-        return (valve_opening(float(mean[0]), vm.u, vm.alpha),
-                valve_opening(float(mean[1]), vm.u, vm.alpha))
+        return self.valve.openings(u)
 
     def step(self, x, u, t: float):
         """x (4,) at time t (s) -> (x_next (4,), T_f N m, sigma) with voltages u (V) held."""
