@@ -4,6 +4,8 @@ No ROS in here. Chains (see config/driver_calibration.yaml for the file layout):
 
     pressure  ADC counts -> V = counts * adc_vref / (2^adc_bits - 1)
               -> gauge Pa = (V - zero_volts) * pascal_per_volt -> absolute Pa = gauge + atmosphere
+              (channels p1, p2 and, optional, supply: the supply line's transducer, PROTOCOL.md
+              1.1; a file without a pressure.supply section loads as before, has_supply False)
     encoder   counts -> rad = sign * (counts - zero_counts) * 2 pi / counts_per_rev
     torque    ADC counts -> V (same ADC) -> N m = (V - zero_volts) * newton_metre_per_volt
     valve     V <-> DAC counts, linear between volts_at_zero (0 counts) and volts_at_full_scale
@@ -25,6 +27,7 @@ from typing import Any
 import yaml
 
 FORMAT_VERSION = 1
+SUPPLY = 2      # the channel index of the supply transducer (P1 0, P2 1), when calibrated
 
 
 class CalibrationError(ValueError):
@@ -44,7 +47,7 @@ class Calibration:
     adc_bits: int
     adc_vref: float
     atmosphere: float                 # Pa
-    channels: tuple                   # (PressureChannel p1, PressureChannel p2)
+    channels: tuple                   # (PressureChannel p1, p2[, supply]): index 0, 1, SUPPLY
     encoder_counts_per_rev: float
     encoder_zero_counts: int
     encoder_sign: int
@@ -70,12 +73,17 @@ class Calibration:
         return min(max(round(volts / self.adc_vref * self.adc_full_scale), 0), self.adc_full_scale)
 
     # ---- pressure ----------------------------------------------------------------------------
+    @property
+    def has_supply(self) -> bool:
+        """The file calibrates the supply transducer (channel SUPPLY)."""
+        return len(self.channels) > SUPPLY
+
     def pressure_volts(self, channel: int, pressure_abs: float) -> float:
         ch = self.channels[channel]
         return ch.zero_volts + (pressure_abs - self.atmosphere) / ch.pascal_per_volt
 
     def pressure(self, channel: int, counts: int) -> float:
-        """Absolute pressure (Pa) of channel 0 (P1) or 1 (P2) from ADC counts."""
+        """Absolute pressure (Pa) of channel 0 (P1), 1 (P2) or SUPPLY from ADC counts."""
         ch = self.channels[channel]
         return (self.adc_volts(counts) - ch.zero_volts) * ch.pascal_per_volt + self.atmosphere
 
@@ -179,7 +187,9 @@ def from_mapping(data: Any, source: str = '<mapping>') -> Calibration:
     vref = r.number('adc.vref_volts', positive=True)
     atmosphere = r.number('pressure.atmosphere_pa', 50e3, 120e3)
     channels = []
-    for name in ('p1', 'p2'):
+    pressure = r.get('pressure')
+    optional = ('supply',) if isinstance(pressure, Mapping) and 'supply' in pressure else ()
+    for name in ('p1', 'p2', *optional):
         key = f'pressure.{name}'
         zero = r.number(f'{key}.zero_volts', 0.0, vref)
         gain = r.number(f'{key}.pascal_per_volt', positive=True)

@@ -5,6 +5,11 @@ resynchronises after garbage bytes and CRC errors, counting both.
 
 Frame: SYNC (0xA5 0x5A) | type u8 | seq u16 LE | length u8 | payload | CRC-16 u16 LE
 CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection) over type..payload.
+
+Version 1.1 adds the optional supply-pressure channel: HELLO_ACK flag bit 2 (FLAG_SUPPLY), and
+then a u16 ADC P_supply at the end of every SAMPLE payload (SUPPLY_FIELD). A board without the
+transducer sends the frames of 1.0 byte for byte; a 1.0 host ignores the field (bytes beyond a
+payload belong to a later minor version).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ OVERHEAD = HEADER_SIZE + CRC.size   # bytes of a frame besides its payload
 MAX_PAYLOAD = 64                    # longer length fields are treated as corruption
 
 PROTOCOL_MAJOR = 1
-PROTOCOL_MINOR = 0
+PROTOCOL_MINOR = 1    # 1.1: the optional supply-pressure channel
 
 # host -> device
 HELLO = 0x01
@@ -34,6 +39,7 @@ DEVICE_HEARTBEAT = 0x83
 
 FLAG_ENCODER = 0x01
 FLAG_TORQUE = 0x02
+FLAG_SUPPLY = 0x04      # 1.1: a supply-pressure transducer fitted (SAMPLE carries SUPPLY_FIELD)
 STATUS_VENTED = 0x01    # SAMPLE status and DEVICE_HEARTBEAT state: the device watchdog vented
 
 HELLO_PAYLOAD = struct.Struct('<BB')                 # major, minor
@@ -41,6 +47,8 @@ HELLO_PAYLOAD = struct.Struct('<BB')                 # major, minor
 HELLO_ACK_PAYLOAD = struct.Struct('<BBHBBB')
 # tick, adc p1, adc p2, encoder, adc torque, status
 SAMPLE_PAYLOAD = struct.Struct('<IHHiHB')
+# 1.1, after SAMPLE_PAYLOAD when the device reports FLAG_SUPPLY: adc p_supply
+SUPPLY_FIELD = struct.Struct('<H')
 COMMAND_PAYLOAD = struct.Struct('<HH')               # dac u1, dac u2
 # host frames received, CRC errors, device watchdog trips, state
 DEVICE_HEARTBEAT_PAYLOAD = struct.Struct('<IIIB')
@@ -96,12 +104,16 @@ class Frame:
 # ---- payload helpers ---------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Sample:
+    """One SAMPLE's fields; adc_supply is None for a board without the supply transducer
+    (or a 1.1 SAMPLE cut short: parse_sample)."""
+
     tick: int
     adc_p1: int
     adc_p2: int
     encoder: int
     adc_torque: int
     status: int = 0
+    adc_supply: int | None = None
 
 
 @dataclass(frozen=True)
@@ -120,6 +132,11 @@ class DeviceInfo:
     @property
     def has_torque(self) -> bool:
         return bool(self.flags & FLAG_TORQUE)
+
+    @property
+    def has_supply(self) -> bool:
+        """A supply-pressure transducer fitted: its SAMPLE frames carry SUPPLY_FIELD (1.1)."""
+        return bool(self.flags & FLAG_SUPPLY)
 
 
 def hello(seq: int, major: int = PROTOCOL_MAJOR, minor: int = PROTOCOL_MINOR) -> bytes:
@@ -140,8 +157,13 @@ def heartbeat(seq: int) -> bytes:
 
 
 def sample(seq: int, s: Sample) -> bytes:
-    return encode_frame(SAMPLE, seq, SAMPLE_PAYLOAD.pack(
-        s.tick & 0xFFFFFFFF, s.adc_p1, s.adc_p2, s.encoder, s.adc_torque, s.status))
+    """A SAMPLE frame; with s.adc_supply (not None) SUPPLY_FIELD is appended (1.1), without it
+    the frame is 1.0's byte for byte."""
+    payload = SAMPLE_PAYLOAD.pack(s.tick & 0xFFFFFFFF, s.adc_p1, s.adc_p2, s.encoder,
+                                  s.adc_torque, s.status)
+    if s.adc_supply is not None:
+        payload += SUPPLY_FIELD.pack(s.adc_supply)
+    return encode_frame(SAMPLE, seq, payload)
 
 
 def device_heartbeat(seq: int, rx_frames: int, rx_crc_errors: int, watchdog_trips: int,
@@ -150,8 +172,14 @@ def device_heartbeat(seq: int, rx_frames: int, rx_crc_errors: int, watchdog_trip
         rx_frames & 0xFFFFFFFF, rx_crc_errors & 0xFFFFFFFF, watchdog_trips & 0xFFFFFFFF, state))
 
 
-def parse_sample(frame: Frame) -> Sample:
-    return Sample(*frame.fields())
+def parse_sample(frame: Frame, supply: bool = False) -> Sample:
+    """The SAMPLE's fields; with supply (the device reported FLAG_SUPPLY) also SUPPLY_FIELD,
+    adc_supply None when the payload ends before it."""
+    fields = frame.fields()
+    adc_supply = None
+    if supply and len(frame.payload) >= SAMPLE_PAYLOAD.size + SUPPLY_FIELD.size:
+        (adc_supply,) = SUPPLY_FIELD.unpack_from(frame.payload, SAMPLE_PAYLOAD.size)
+    return Sample(*fields, adc_supply=adc_supply)
 
 
 def parse_hello_ack(frame: Frame) -> DeviceInfo:

@@ -142,3 +142,43 @@ def test_board_vents_from_the_sample_status_and_the_heartbeat():
     vents.on_heartbeat(2)                         # the device restarted: its counter begins again
     vents.on_heartbeat(3)
     assert vents.trips == 6 and vents.count == 6
+
+
+# ---- the optional supply-pressure channel (1.1) ------------------------------------------------
+def _frame_1_0(seq: int, payload: bytes) -> bytes:
+    """A frame exactly as PROTOCOL.md 1.0 lays it out, built by hand."""
+    body = bytes([proto.SAMPLE]) + seq.to_bytes(2, 'little') + bytes([len(payload)]) + payload
+    return b'\xa5\x5a' + body + proto.crc16(body).to_bytes(2, 'little')
+
+
+def test_a_board_without_the_supply_channel_sends_the_frames_of_1_0():
+    payload = ((123456).to_bytes(4, 'little') + (4095).to_bytes(2, 'little')
+               + (17).to_bytes(2, 'little') + (-40000).to_bytes(4, 'little', signed=True)
+               + (2048).to_bytes(2, 'little') + b'\x01')
+    old = _frame_1_0(7, payload)
+    assert len(payload) == 15
+    sample = proto.Sample(123456, 4095, 17, -40000, 2048, 1, adc_supply=None)
+    assert proto.sample(7, sample) == old, 'byte for byte as 1.0'
+    (frame,) = proto.Decoder().feed(old)
+    # read by a host that knows the channel, from a board that does not report it (or does:
+    # a frame cut short before the field) -> no supply reading, every other field
+    assert proto.parse_sample(frame) == sample
+    assert proto.parse_sample(frame, supply=True) == sample
+
+
+def test_supply_channel_round_trip_and_what_a_1_0_host_reads():
+    info = proto.DeviceInfo(1, 1, 1000, 12, 12,
+                            proto.FLAG_ENCODER | proto.FLAG_TORQUE | proto.FLAG_SUPPLY)
+    plain = proto.DeviceInfo(1, 1, 1000, 12, 12, proto.FLAG_ENCODER | proto.FLAG_TORQUE)
+    sample = proto.Sample(99, 1000, 2000, 5, 2048, 0, adc_supply=3210)
+    d = proto.Decoder()
+    ack, ack_plain, frame = d.feed(proto.hello_ack(1, info) + proto.hello_ack(2, plain)
+                                   + proto.sample(3, sample))
+    assert proto.parse_hello_ack(ack).has_supply and not proto.parse_hello_ack(ack_plain).has_supply
+    assert len(frame.payload) == 17
+    assert frame.payload[15:] == (3210).to_bytes(2, 'little'), 'the field at offset 15, u16 LE'
+    assert proto.parse_sample(frame, supply=True) == sample
+    # a host that does not read the channel (1.0, or a device not reporting it) gets the rest
+    assert proto.parse_sample(frame) == proto.Sample(99, 1000, 2000, 5, 2048, 0)
+    assert frame.fields() == (99, 1000, 2000, 5, 2048, 0), 'the 1.0 fields, the rest ignored'
+    assert proto.PROTOCOL_MINOR >= 1

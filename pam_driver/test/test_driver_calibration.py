@@ -84,3 +84,19 @@ def test_driver_config_reports_calibration_errors(tmp_path):
     with pytest.raises(ConfigError, match='valve_limits'):
         build_config({'valve_limits': [5.0, 1.0]})
     assert build_config({'calibration_file': str(SHIPPED)})['watchdog_timeout'] == 0.05
+
+
+def test_the_supply_channel_is_optional(tmp_path):
+    """The shipped file calibrates the supply transducer (channel SUPPLY); a file without a
+    pressure.supply section loads as before, without it; a bad supply value names its key."""
+    cal = calibration.load(SHIPPED)
+    assert cal.has_supply
+    for p in (101300.0, 690e3, 710e3):
+        counts = cal.pressure_counts(calibration.SUPPLY, p)
+        assert abs(cal.pressure(calibration.SUPPLY, counts) - p) <= 0.5 * cal.pressure_resolution(
+            calibration.SUPPLY) + 1e-6
+    old = calibration.load(_write(tmp_path, lambda d: d['pressure'].pop('supply')))
+    assert not old.has_supply and len(old.channels) == 2
+    bad = _write(tmp_path, lambda d: d['pressure']['supply'].update(pascal_per_volt=-1))
+    with pytest.raises(CalibrationError, match=r'pressure\.supply\.pascal_per_volt'):
+        calibration.load(bad)
