@@ -1,0 +1,139 @@
+"""The estimator's model extensions (issue 17 item 2, docs/model_extensions.md): the UKF and the
+model alone carry the effects of pam_model.model_extensions; without them (NO_EXTENSIONS, no
+supply) they compute what the paper's model computed, bit for bit."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pam_estimator.evaluation import (
+    evaluate,
+    measured_and_estimated,
+    run_model_alone,
+    run_ukf,
+    start_state,
+)
+from pam_estimator.pam_ukf import PamUkf
+from pam_model.effects import Effects
+from pam_model.metrics import metrics
+from pam_model.mismatch import load_scenario
+from pam_model.model import PamModel
+from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS, extensions_from_dict
+from pam_model.parameters import load_parameters
+from pam_model.profiles import validation_profile
+from pam_model.sensor import PressureSensor
+from pam_model.simulate import simulate
+
+X0 = (0.0, 0.0, 4.5e5, 4.5e5)
+#: Estimator-side effects of the size of the 'realistic' scenario's.
+RIG = Effects(valve_time_constant=0.005, dead_volume=6.0e-6, hysteresis_band=2.0,
+              sensor_offset=(2000.0, -3000.0), sensor_gain_error=(0.005, -0.005))
+
+
+def true_extensions(effects: Effects) -> Effects:
+    """A plant's effects restricted to what an estimator's model may carry."""
+    return extensions_from_dict({k: getattr(effects, k) for k in ESTIMATOR_FIELDS}, 'plant')
+
+
+def short_run(locked, effects, seconds=3.0, model=None):
+    model = replace(model or PamModel(), locked=locked)
+    profile = validation_profile(1, seconds, model.h)
+    return model, simulate(model, profile.u, X0, PressureSensor(2000.0, 12), 1, effects=effects)
+
+
+@pytest.mark.parametrize('locked', [False, True])
+def test_no_extensions_is_the_paper_filter_bit_for_bit(locked):
+    """The extensions' path (taken when a supply pressure is given) with NO_EXTENSIONS and the
+    nominal P_tank computes exactly the paper filter's numbers (ukf_step)."""
+    model, run = short_run(locked, RIG, seconds=1.0)
+    paper = PamUkf(model=model, x0=X0)
+    extended = PamUkf(model=model, x0=X0, extensions=NO_EXTENSIONS)
+    for k in range(1, len(run.t)):
+        a = paper.step(run.p_measured[k], run.u[k - 1])
+        b = extended.step(run.p_measured[k], run.u[k - 1], supply=model.params.P_tank)
+        assert np.array_equal(a.x, b.x) and np.array_equal(a.P, b.P)
+        assert (a.force1, a.force2, a.torque, a.torque_variance, a.subsystem, a.nis) == (
+            b.force1, b.force2, b.torque, b.torque_variance, b.subsystem, b.nis)
+
+
+def test_a_measured_supply_pressure_moves_the_prediction():
+    model, run = short_run(False, None, seconds=0.5)
+    nominal, low = PamUkf(model=model, x0=X0), PamUkf(model=model, x0=X0)
+    for k in range(1, len(run.t)):
+        a = nominal.step(run.p_measured[k], run.u[k - 1], supply=float('nan'))  # = nominal
+        b = low.step(run.p_measured[k], run.u[k - 1], supply=model.params.P_tank - 1.0e5)
+    assert a.x[2] > b.x[2] + 1.0e3 or a.x[3] > b.x[3] + 1.0e3
+
+
+def test_an_estimator_refuses_the_rig_states():
+    with pytest.raises(ValueError, match='supply_droop not allowed in an estimator'):
+        PamUkf(extensions=Effects(supply_droop=1.0e4))
+
+
+def test_the_sensor_extension_inverts_the_reading_but_checks_the_raw_one():
+    """y = (1 + g) P + o read back as P: a filter that knows the offset and gain follows the
+    true pressures; a raw reading out of range is still refused."""
+    ext = Effects(sensor_offset=(3.0e4, -3.0e4), sensor_gain_error=(0.05, -0.05))
+    model, run = short_run(True, ext, seconds=1.0)
+    knows = PamUkf(model=model, x0=X0, extensions=ext)
+    blind = PamUkf(model=model, x0=X0)
+    for k in range(1, len(run.t)):
+        a = knows.step(run.p_measured[k], run.u[k - 1])
+        b = blind.step(run.p_measured[k], run.u[k - 1])
+    truth = run.x[-1, 2:]
+    assert np.max(np.abs(a.x[2:] - truth)) < 5.0e3 < np.max(np.abs(b.x[2:] - truth))
+    before = knows.rejected_samples
+    knows.step((500.0, 4.0e5), run.u[-1])     # raw reading below y_range
+    assert knows.rejected_samples == before + 1
+
+
+@pytest.mark.parametrize('locked', [False, True])
+def test_the_model_alone_with_the_plant_effects_is_the_plant(locked):
+    """Open loop from the true start, the model alone carrying the plant's valve lag, dead
+    volume and hysteresis computes the plant's angle and torque (the sensor's offset and gain
+    change nothing it computes); without them it does not."""
+    model, run = short_run(locked, RIG)
+    x0 = start_state(run, 'recorded')
+    ext = run_model_alone(run, model, x0, RIG)
+    paper = run_model_alone(run, model, x0)
+    np.testing.assert_allclose(ext.torque, run.torque, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ext.x, run.x, rtol=0, atol=1e-6)
+    assert np.max(np.abs(paper.torque - run.torque)) > 0.05
+
+
+@pytest.fixture(scope='module')
+def realistic():
+    """20 s of the 'realistic' rig (validation profile, seed 1), the true mild parameters."""
+    scenario = load_scenario('realistic')
+    model = PamModel(params=scenario.apply(load_parameters('default')))
+    profile = validation_profile(1, 20.0, model.h)
+    runs = {locked: simulate(replace(model, locked=locked), profile.u, X0, scenario.sensor, 1,
+                             effects=scenario.effects) for locked in (False, True)}
+    return model, runs, true_extensions(scenario.effects)
+
+
+@pytest.mark.parametrize('locked', [False, True])
+def test_the_true_extensions_beat_the_paper_model_on_the_realistic_rig(realistic, locked):
+    model, runs, extensions = realistic
+    run = runs[locked]
+    m = replace(model, locked=locked)
+    q = {name: metrics(*measured_and_estimated(run, run_ukf(run, m, extensions=e))).Q
+         for name, e in (('without', NO_EXTENSIONS), ('with', extensions))}
+    print(f"{'locked' if locked else 'free'}: UKF Q without {100 * q['without']:.2f} %, "
+          f"with the true extensions {100 * q['with']:.2f} %")
+    assert q['with'] < 0.5 * q['without']
+
+
+def test_evaluate_passes_the_extensions_to_both(realistic):
+    model, runs, extensions = realistic
+    run = runs[True]
+    short = replace(run, t=run.t[:2000], u=run.u[:2000], x=run.x[:2000],
+                    torque=run.torque[:2000], force=run.force[:2000],
+                    friction=run.friction[:2000], subsystem=run.subsystem[:2000],
+                    p_measured=run.p_measured[:2000])
+    table, alone, ukf = evaluate(short, model, extensions=extensions)
+    plain, alone0, ukf0 = evaluate(short, model)
+    assert not np.array_equal(alone.torque, alone0.torque)
+    assert not np.array_equal(ukf.torque, ukf0.torque)
+    assert table['ukf'].Q < plain['ukf'].Q
