@@ -37,6 +37,12 @@ PARAMETERS = (
               'of a stepped profile records whole holds only, whenever the report started '
               '(pam-demo), not a last hold cut short.', choices=('reference', 'step')),
     ParamSpec('plot', '', 'string', '', "PNG path for the figure; '': no figure."),
+    ParamSpec('summary', '', 'string', '',
+              "JSON path for the report's figures (per step and worst steady-state error in % of "
+              "range and settling time in s, estimation I/M/Q whole and after the transient); "
+              "'': none. Written to a temporary file, then renamed."),
+    ParamSpec('title', 'Sensor-less PI tracking on the simulated rig', 'string', '',
+              "The figure's title."),
     ParamSpec('transient', 1.0, 'double', 's',
               'The estimation error is also printed over t >= transient only (t from the first '
               'sample recorded); the headline line covers the whole record.',
@@ -162,13 +168,16 @@ class TrackingReport(Node):
         for line in report.lines(scale, unit):
             print('  ' + line, flush=True)
         ok = ~np.isnan(estimate)
+        estimation = {}
         if ok.sum() > 1:
             m = metrics(measured[ok] * scale, estimate[ok] * scale)
+            estimation['whole'] = m
             print(f'  estimation error ({ok.sum()} samples): {m.row(" " + unit)}', flush=True)
             transient = self.values['transient']
             late = ok & after_transient(t, transient)
             if late.sum() > 1:
                 m = metrics(measured[late] * scale, estimate[late] * scale)
+                estimation['after_transient'] = m
                 print(f'  estimation error after t >= {transient:g} s ({late.sum()} samples): '
                       f'{m.row(" " + unit)}', flush=True)
             else:
@@ -176,12 +185,48 @@ class TrackingReport(Node):
                       f'(the record spans {t[-1]:.1f} s)', flush=True)
         if self.values['plot']:
             path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
-                                 commands, unit, self.values['plot'])
+                                 commands, unit, self.values['plot'], self.values['title'])
             print(f'  figure: {path}', flush=True)
+        if self.values['summary']:
+            path = write_summary(self.values['summary'], report_summary(
+                'angle' if angle else 'torque', unit, t, report, scale, estimation,
+                self.values['transient']))
+            print(f'  summary: {path}', flush=True)
         return 0
 
 
-def plot_tracking(t, reference, measured, estimate, commands, unit, path):
+def report_summary(mode: str, unit: str, t, report, scale: float, estimation: dict,
+                   transient: float) -> dict:
+    """The report's figures as plain data (the `summary` JSON): errors in % of range, times in
+    s, estimation I / M in `unit`, Q in % of the measured range."""
+    return {
+        'mode': mode, 'unit': unit, 'recorded_s': float(t[-1]), 'samples': len(t),
+        'steps': [{'t_start_s': s.t_start, 'reference': s.reference * scale,
+                   'steady_state_error_pct': s.steady_error, 'settling_time_s': s.settling_time,
+                   'overshoot_pct': s.overshoot, 'ripple_pct': s.ripple} for s in report.steps],
+        'worst_steady_state_error_pct': report.worst_error,
+        'worst_settling_time_s': report.worst_settling,
+        'estimation': {key: {'I': m.I, 'M': m.M, 'Q_pct': 100.0 * m.Q}
+                       for key, m in estimation.items()},
+        'transient_s': transient,
+    }
+
+
+def write_summary(path, summary: dict) -> str:
+    """Write summary as JSON to path (temporary sibling, then renamed); returns the path."""
+    import json
+    import os
+    path = os.fspath(path)
+    tmp = f'{path}.tmp'
+    with open(tmp, 'w') as f:
+        json.dump(summary, f, indent=2, default=float)
+        f.write('\n')
+    os.replace(tmp, path)
+    return path
+
+
+def plot_tracking(t, reference, measured, estimate, commands, unit, path,
+                  title='Sensor-less PI tracking on the simulated rig'):
     """The paper's Fig. 14 layout: tracking, valve voltages, errors."""
     import matplotlib
     matplotlib.use('Agg')
@@ -202,7 +247,7 @@ def plot_tracking(t, reference, measured, estimate, commands, unit, path):
     axes[2].set_ylabel(f'error ({unit})')
     axes[2].set_xlabel('time (s)')
     axes[2].legend(loc='upper right', fontsize=8)
-    fig.suptitle('Sensor-less PI tracking on the simulated rig')
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
