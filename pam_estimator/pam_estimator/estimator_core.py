@@ -8,6 +8,10 @@
   (so a controller that missed it can answer), counted; a stamp older than
   the last one means time went backwards (a bag looping, a simulator restarted): the filter is
   reset to its initial state and covariance, then the sample is processed;
+* a supply pressure reading (Pa abs, stamp in ns; only with use_supply) is held and used as
+  P_tank of the steps whose sample stamp is within SUPPLY_STALE of its stamp; a reading that is
+  older (or newer by as much: time went backwards), missing or not finite gives the model's
+  P_tank (counted, the reason in supply_fallback);
 * statistics for the diagnostics: input rate, step time, NIS, covariance trace, rejections.
 """
 
@@ -25,6 +29,7 @@ from pam_model.valve_voltage import sanitise_command
 from .pam_ukf import PamUkf, UkfOutput
 
 RATE_WINDOW = 1000          # samples over which the input rate and step times are measured
+SUPPLY_STALE = 0.1          # s, a supply reading further from the sample's stamp is not used
 
 
 @dataclass
@@ -40,8 +45,13 @@ class CoreEvent:
 class EstimatorCore:
     """Feeds a PamUkf from timestamped messages and keeps the numbers the diagnostics report."""
 
-    def __init__(self, ukf: PamUkf, initial_command=(5.5, 5.5)):
+    def __init__(self, ukf: PamUkf, initial_command=(5.5, 5.5), use_supply: bool = False):
         self.ukf = ukf
+        self.use_supply = use_supply
+        self.supply: tuple[float, int] | None = None    # last reading (Pa abs, stamp ns)
+        self.supply_used = 0          # steps with the measured supply pressure
+        self.supply_fallbacks = 0     # steps with the model's P_tank although use_supply
+        self.supply_fallback = ''     # why the last step fell back ('' if it did not)
         self.initial_command = tuple(float(u) for u in initial_command)
         self.u_prev = np.array(self.initial_command)
         self.last_stamp_ns: int | None = None
@@ -65,6 +75,32 @@ class EstimatorCore:
             self.bad_commands += 1
             return False
         return True
+
+    def on_supply(self, pressure: float, stamp_ns: int) -> None:
+        """Hold a supply pressure reading (Pa abs) stamped stamp_ns."""
+        self.supply = (float(pressure), int(stamp_ns))
+
+    def supply_for(self, stamp_ns: int) -> float | None:
+        """The supply pressure (Pa abs) for the sample stamped stamp_ns, None for the model's
+        P_tank (counted with its reason when use_supply)."""
+        self.supply_fallback = ''
+        if not self.use_supply:
+            return None
+        if self.supply is None:
+            self.supply_fallback = 'no supply pressure received yet'
+        else:
+            value, stamp = self.supply
+            age = (stamp_ns - stamp) * 1e-9
+            if not (math.isfinite(value) and value > 0.0):
+                self.supply_fallback = f'supply pressure {value!r} Pa not usable'
+            elif abs(age) > SUPPLY_STALE:
+                self.supply_fallback = (f'supply pressure {age:.3f} s from the sample '
+                                        f'(> {SUPPLY_STALE:g} s)')
+            else:
+                self.supply_used += 1
+                return value
+        self.supply_fallbacks += 1
+        return None
 
     def reset(self, x0=None, P0=None) -> None:
         """Restart the filter (from its configured initial state unless given)."""
@@ -91,7 +127,7 @@ class EstimatorCore:
                            'filter reset to its initial state')
         self._arrivals.append(now)
         start = time.perf_counter()
-        output = self.ukf.step((p1, p2), self.u_prev)
+        output = self.ukf.step((p1, p2), self.u_prev, self.supply_for(stamp_ns))
         self._step_times.append(time.perf_counter() - start)
         self.last_stamp_ns = stamp_ns
         self.samples += 1

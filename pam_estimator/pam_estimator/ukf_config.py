@@ -32,6 +32,14 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "'printed' or the path of a Table II YAML file."),
     ParamSpec('valve_map', 'default', 'string', '',
               "Valve map kappa(u): 'default' (shipped table) or a voltage_V,alpha CSV path."),
+    ParamSpec('model_extensions', '', 'string', '',
+              "Path of an extensions.yaml (pam-identify writes it; docs/model_extensions.md): "
+              "the filter's model carries its valve lag, dead volume, force hysteresis, sensor "
+              "offset and gain; '' (the default): none, the paper's model."),
+    ParamSpec('use_supply_pressure', False, 'bool', '',
+              'Subscribe supply_pressure (sensor_msgs/FluidPressure, Pa abs) and predict with '
+              'the latest reading as P_tank; one older than 0.1 s or not finite: the model\'s '
+              'P_tank (counted on /diagnostics).'),
     ParamSpec('friction_law', str(FrictionLaw.PROPOSED), 'string', '',
               "Friction law of the filter's model.", choices=FrictionLaw.names()),
     ParamSpec('force_model', str(ForceModel.PROPOSED), 'string', '',
@@ -80,6 +88,8 @@ SUMMARY = [
     'keep last 100):',
     '  subscribes  pressures       pam_interfaces/Pressures        P1, P2 (Pa abs), one step each',
     '  subscribes  valve_command   pam_interfaces/ValveCommand     u1, u2 (V), held as u(k-1)',
+    '  subscribes  supply_pressure sensor_msgs/FluidPressure       P_tank (Pa abs), with',
+    '                                                              use_supply_pressure only',
     '  publishes   estimate        pam_interfaces/JointEstimate    per sample, with its stamp',
     '  publishes   estimate/joint_states  sensor_msgs/JointState   the estimate for the standard',
     '                                                              tools (joint_states_rate)',
@@ -112,6 +122,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
         fail('pressure_max', f"must exceed pressure_min ({values['pressure_min']} Pa)")
 
     from pam_model.model import PamModel
+    from pam_model.model_extensions import load_extensions
     from pam_model.parameters import ParameterError, load_parameters
     from pam_model.valve_map import load_valve_map
 
@@ -134,6 +145,10 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
     except (ParameterError, ValueError) as exc:
         fail('model_parameters', str(exc))
     try:
+        extensions = load_extensions(values['model_extensions'])
+    except ParameterError as exc:
+        fail('model_extensions', str(exc))
+    try:
         valve_map = load_valve_map(values['valve_map'])
     except (ValueError, OSError) as exc:
         fail('valve_map', str(exc))
@@ -142,13 +157,18 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
     check_joint_states(values, 1.0 / model.h)    # one filter step per sample of h
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(values['initial_state']),
                  nis_gate=values['nis_gate'],
-                 y_range=(values['pressure_min'], values['pressure_max']))
+                 y_range=(values['pressure_min'], values['pressure_max']),
+                 extensions=extensions)
     summary = [
         f"model: parameters {values['model_parameters']!r}, valve map {values['valve_map']!r}, "
         f"friction {values['friction_law']!r}, force {values['force_model']!r}, joint "
         f"{values['joint_mode']}",
         f"tuning {values['tuning']!r}: Q diag {list(tuning.Q)}, R diag {list(tuning.R)}, "
         f'P(0) diag {list(tuning.P0)}',
+        f"model extensions: {extensions.describe()}"
+        + (f" ({values['model_extensions']})" if values['model_extensions'] else '')
+        + (', supply pressure: measured (supply_pressure)' if values['use_supply_pressure']
+           else ''),
         f"initial state {values['initial_state']}, NIS gate "
         f"{values['nis_gate'] if values['nis_gate'] > 0 else 'off'}, valid pressures "
         f"[{values['pressure_min']:g}, {values['pressure_max']:g}] Pa",

@@ -5,6 +5,10 @@ remapped with `--ros-args -r __ns:=/other`):
 
     pressures      pam_interfaces/Pressures        subscribed: one filter step per sample
     valve_command  pam_interfaces/ValveCommand     subscribed: held as u(k-1)
+    supply_pressure  sensor_msgs/FluidPressure     subscribed with use_supply_pressure only:
+                                                   P_tank (Pa abs) of the prediction (a reading
+                                                   over 0.1 s from the sample's stamp or not
+                                                   finite: the model's P_tank, counted, WARN)
     estimate       pam_interfaces/JointEstimate    published for every sample, with the sample's
                                                    stamp and counter (sample), covariance and
                                                    filter health
@@ -35,7 +39,7 @@ import sys
 import numpy as np
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
@@ -52,6 +56,7 @@ from pam_common.topics import (
     ESTIMATE,
     ESTIMATE_JOINT_STATES,
     PRESSURES,
+    SUPPLY_PRESSURE,
     VALVE_COMMAND,
 )
 from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
@@ -73,14 +78,15 @@ class UkfNode(Node):
         # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
         self.realtime = RealtimeKnobs(self.get_logger(), config.values)
         self.realtime.apply_to_executor()
-        self.core = EstimatorCore(config.ukf, config.values['initial_command'])
+        self.core = EstimatorCore(config.ukf, config.values['initial_command'],
+                                  config.values['use_supply_pressure'])
         self.frame_id = config.values['frame_id']
         self.stale_timeout = config.values['stale_timeout']
         lost_warn_ratio = config.values['lost_samples_warn_ratio']
         self.gaps = SampleGaps()
         self.logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
-        self._log_command, self._log_reset, self._log_rejected = (self.logs.new() for _ in
-                                                                  range(3))
+        (self._log_command, self._log_reset, self._log_rejected,
+         self._log_supply) = (self.logs.new() for _ in range(4))
         for line in config.summary:
             self.get_logger().info(line)
         self._warm_up()
@@ -95,6 +101,8 @@ class UkfNode(Node):
             1.0 / config.ukf.model.h)          # one filter step per sample
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
         self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
+        if self.core.use_supply:
+            self.create_subscription(FluidPressure, SUPPLY_PRESSURE, self._on_supply, SAMPLE_QOS)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.diagnostics = DiagnosticsPublisher(self, 'UKF estimator',
                                                 config.values['hardware_id'], self._report)
@@ -105,7 +113,9 @@ class UkfNode(Node):
         self.get_logger().info(
             f'estimating: {self.resolve_topic_name(PRESSURES)} + '
             f'{self.resolve_topic_name(VALVE_COMMAND)} -> {self.resolve_topic_name(ESTIMATE)}'
-            + (f', {self.joint_states.describe()}' if rate else ''))
+            + (f', {self.joint_states.describe()}' if rate else '')
+            + (f', P_tank from {self.resolve_topic_name(SUPPLY_PRESSURE)}'
+               if self.core.use_supply else ''))
 
     def _warm_up(self) -> None:
         """Run the compiled kernel once (loads numba's cache or compiles) on a throw-away copy."""
@@ -120,11 +130,17 @@ class UkfNode(Node):
                               f'finite: used sanitised ({self.core.u_prev[0]:g}, '
                               f'{self.core.u_prev[1]:g}) V ({self.core.bad_commands} so far)')
 
+    def _on_supply(self, msg: FluidPressure) -> None:
+        self.core.on_supply(msg.fluid_pressure, stamp_ns(msg.header.stamp))
+
     def _on_pressures(self, msg: Pressures) -> None:
         self.gaps.update(msg.sample)
         event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns(msg.header.stamp))
         if event.output is None:
             return
+        if self.core.supply_fallback:
+            self._log_supply(f'{self.core.supply_fallback}: nominal P_tank used '
+                             f'({self.core.supply_fallbacks} samples so far)')
         if event.kind == 'reset':
             self._log_reset(event.message)
             if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
@@ -202,7 +218,14 @@ class UkfNode(Node):
             'step time median (us)': median * 1e6,
             'step time max (us)': worst * 1e6,
             'joint mode': 'locked' if ukf.model.locked else 'free',
+            'model extensions': ukf.extensions.describe(),
         }
+        if core.use_supply:
+            values['supply pressure (kPa abs)'] = (core.supply[0] / 1e3 if core.supply
+                                                   else float('nan'))
+            values['samples with the measured supply'] = core.supply_used
+            values['samples with the nominal P_tank (supply stale or not finite)'] = (
+                core.supply_fallbacks)
         if core.samples == 0:
             return WARN, 'waiting for pressures', values
         if not math.isfinite(trace):
