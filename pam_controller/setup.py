@@ -15,7 +15,7 @@ setup(
     maintainer='PAM ROS maintainers',
     maintainer_email='maintainers@pam-ros.invalid',
     description=('Sensor-less PI control of the antagonistic PAM joint, references '
-                 '(reference_node, profile_player).'),
+                 '(reference_node, profile_player), pam-robustness.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
@@ -23,6 +23,7 @@ setup(
             'pi_node = pam_controller.entry_points:pi_node',
             'reference_node = pam_controller.entry_points:reference_node',
             'profile_player = pam_controller.entry_points:profile_player',
+            'pam-robustness = pam_controller.entry_points:pam_robustness',
         ],
     },
 )

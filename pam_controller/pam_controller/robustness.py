@@ -1,0 +1,219 @@
+"""pam-robustness's computation (issue 17 item 3), no ROS: which imperfection of a rig matters.
+
+For every plant of robustness_plants.sweep_plants (an effect at a magnitude, or a Monte Carlo
+parameter draw) it runs
+* the validation profile (pam_model.profiles.validation_profile, free and locked joint, the
+  plant's sensor) through each estimator: the UKF's whole-run Q of the angle (Q_psi) and of the
+  torque (Q_tau), MODEL.md section 6, the estimator starting from the first measured state as
+  pam-evaluate does (pam_estimator.evaluation.start_state);
+* the sensor-less closed loop (pam_controller.closed_loop) over the demo's angle steps
+  (reference_node's defaults: steps of 8 s within +-20 deg, seed 0) with pi_node's default gains:
+  the worst steady-state error (% of the 40 deg range) and the worst settling time (s) of
+  step_metrics.
+
+The estimators (columns):
+* 'nominal': the UKF with the shipped Table II set (what a user has before identification);
+* 'oracle': the UKF with the plant's TRUE parameters and no model of the effects: what remains
+  when identification is perfect;
+* 'identified' (optional, costly): the UKF with what pam_model.identification.identify (partial)
+  makes of a simulated calibration campaign on that plant, effects included.
+
+The UKF runs of all plants x estimators sharing a valve map go through one compiled kernel
+(ukf_runs_kernel: the estimation of many plants at once); the plants with effects step sample
+by sample (pam_model.effects.EffectsPlant), those without through the compiled simulator.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numba import njit
+
+from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, ukf_step
+from pam_model.metrics import metrics
+from pam_model.mismatch import MismatchScenario
+from pam_model.model import PamModel
+from pam_model.physics import joint_torque, muscle_forces
+from pam_model.profiles import step_reference_profile, validation_profile
+from pam_model.simulate import simulate
+
+from .closed_loop import simulate_closed_loop, simulate_closed_loop_with_effects
+from .robustness_plants import Plant, sweep_plants
+from .step_metrics import ANGLE_SPAN
+
+X0 = (0.0, 0.0, 4.5e5, 4.5e5)       # rad, rad/s, Pa, Pa: every run's initial state
+ESTIMATORS = ('nominal', 'oracle', 'identified')
+#: The demo's reference (reference_node's defaults): angle steps held 8 s, seed 0.
+REFERENCE_HOLD = 8.0                 # s
+REFERENCE_SEED = 0
+CHUNK = 8                            # distinct plants whose runs are held (and batched) at once
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What to run: rows and magnitudes (robustness_plants), Monte Carlo plants, the seed (the
+    validation profile's, the sensor noise's and the draws'), the validation profile's and the
+    closed loop's durations (s), the estimators, the identification campaign plan."""
+
+    base: MismatchScenario
+    rows: tuple
+    magnitudes: tuple
+    monte_carlo: int = 8
+    seed: int = 1
+    validation_duration: float = 130.0
+    closed_loop_duration: float = 64.0
+    estimators: tuple = ('nominal', 'oracle')
+    campaign: object = None          # pam_model.identification.campaign.CampaignPlan
+    gains: tuple = (40.0, 50.0)      # kp V/rad, ki V/(rad s)
+    anti_windup: str = 'conditional'
+    tracking_time: float = 0.1       # s
+
+
+@dataclass
+class PlantResult:
+    """One plant's figures per estimator: q_psi, q_tau (%), ss_error (% of range), settling (s)."""
+
+    plant: Plant
+    figures: dict = field(default_factory=dict)      # estimator -> {figure: value}
+
+
+@njit(cache=True)
+def ukf_runs_kernel(p_measured, U, x0s, est_arrays, h, kappa_u, kappa_alpha, friction_law,
+                    force_model, locked, Q, R, P0):
+    """The UKF over B recorded runs of one input profile at once: run b (p_measured[b] (N, 2)
+    Pa, commands U (N, 2) V) with the parameters est_arrays[b] from x0s[b]; as
+    pam_estimator.evaluation.run_ukf: sample 0 is x0, sample k predicts with U[k-1] and updates
+    with p_measured[b, k]. Returns the estimated angle (B, N) (rad) and torque (B, N) (N m)."""
+    B, n = p_measured.shape[0], p_measured.shape[1]
+    psi = np.empty((B, n))
+    tau = np.empty((B, n))
+    info = np.zeros(len(INFO_FIELDS))
+    for b in range(B):
+        p_array = est_arrays[b:b + 1]
+        x = x0s[b].copy()
+        P = P0.copy()
+        F1, F2 = muscle_forces(x[0], x[2], x[3], p_array[0], force_model)
+        psi[b, 0] = x[0]
+        tau[b, 0] = joint_torque(x[0], F1, F2, p_array[0])
+        for k in range(1, n):
+            ukf_step(x, P, U[k - 1], p_measured[b, k], Q, R, h, p_array, kappa_u, kappa_alpha,
+                     friction_law, force_model, locked, x0s[b, 0], 0.0, 1.0e3, 2.0e6, info)
+            psi[b, k] = x[0]
+            tau[b, k] = info[6]
+    return psi, tau
+
+
+def estimation_q(runs, models, tuning=DEFAULT_TUNING) -> np.ndarray:
+    """Whole-run Q (%) of the UKF with models[i] over runs[i]: SimulationResults of one input
+    profile and one joint mode (angle Q when free, torque Q when locked). The runs whose
+    models share a valve map go through ukf_runs_kernel in one call."""
+    q = np.empty(len(runs))
+    groups: dict = {}
+    for i, model in enumerate(models):
+        groups.setdefault(id(model.valve_map), []).append(i)
+    for index in groups.values():
+        est = models[index[0]]
+        locked = runs[index[0]].locked
+        p_meas = np.ascontiguousarray([runs[i].p_measured for i in index])
+        x0s = np.array([[runs[i].x[0, 0], runs[i].x[0, 1], *runs[i].p_measured[0]]
+                        for i in index])
+        arrays = np.concatenate([models[i].params_array for i in index])
+        psi, tau = ukf_runs_kernel(p_meas, np.ascontiguousarray(runs[index[0]].u), x0s, arrays,
+                                   est.h, est.valve_map.u, est.valve_map.alpha,
+                                   est.friction_code, est.force_code, locked,
+                                   np.diag(tuning.Q), np.diag(tuning.R), np.diag(tuning.P0))
+        for row, i in enumerate(index):
+            run = runs[i]
+            measured, estimated = ((run.torque, tau[row]) if locked else
+                                   (np.degrees(run.x[:, 0]), np.degrees(psi[row])))
+            q[i] = 100.0 * metrics(measured, estimated).Q
+    return q
+
+
+def identified_model(plant_model: PamModel, plant: Plant, sensor, nominal: PamModel, plan):
+    """The model pam-identify (partial) makes of a simulated campaign on the plant."""
+    from pam_model.identification.campaign import records_of, simulate_campaign
+    from pam_model.identification.identify import identify
+    runs = simulate_campaign(plant_model, sensor, plan, effects=plant.effects)
+    ident = identify(records_of(runs), nominal.params, nominal.valve_map, partial=True)
+    return replace(nominal, params=ident.params, valve_map=ident.valve_map)
+
+
+def closed_loop_figures(plant_model: PamModel, plant: Plant, estimator: PamModel, reference,
+                        settings: Settings, sensor) -> dict:
+    """Worst steady-state error (% of the 40 deg range) and settling (s) of the angle steps."""
+    args = dict(sensor=sensor, mode='angle', anti_windup=settings.anti_windup,
+                tracking_time=settings.tracking_time, x0=X0, seed=settings.seed)
+    if plant.effects.active or estimator.valve_map is not plant_model.valve_map:
+        run = simulate_closed_loop_with_effects(plant_model, plant.effects, estimator, reference,
+                                                settings.gains, **args)
+    else:
+        run, = simulate_closed_loop(plant_model, estimator, reference, [settings.gains], **args)
+    report = run.report(ANGLE_SPAN, 2.0)
+    return {'ss_error': report.worst_error, 'settling': report.worst_settling}
+
+
+def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] = print,
+              chunk: int = CHUNK) -> tuple[list[PlantResult], dict]:
+    """Every plant's figures and the time spent per stage (s). Distinct plants are computed
+    once, `chunk` at a time: their validation runs, then the UKF runs of the whole chunk (plants
+    x estimators) in one kernel call per joint mode, then their closed loops."""
+    timing = {'simulate': 0.0, 'identify': 0.0, 'estimate': 0.0, 'closed_loop': 0.0}
+    sensor = settings.base.sensor
+    profile = validation_profile(settings.seed, settings.validation_duration, nominal.h)
+    reference = step_reference_profile('angle', REFERENCE_SEED, settings.closed_loop_duration,
+                                       REFERENCE_HOLD, nominal.h).value
+    plants = sweep_plants(settings.rows, settings.magnitudes, settings.base, nominal.params,
+                          settings.monte_carlo, settings.seed)
+    unique: dict = {}
+    for plant in plants:
+        unique.setdefault((plant.params, plant.effects), plant)
+    log(f'{len(plants)} plants ({len(unique)} distinct), validation profile '
+        f'{settings.validation_duration:g} s, closed loop {settings.closed_loop_duration:g} s, '
+        f'estimators {", ".join(settings.estimators)}')
+    keys = list(unique)
+    done: dict = {}
+
+    def stage(name, work, *args):
+        """work(*args), its time added to timing[name]."""
+        clock = time.perf_counter()
+        result = work(*args)
+        timing[name] += time.perf_counter() - clock
+        return result
+
+    def validation_run(plant, model, locked):
+        return simulate(replace(model, locked=locked), profile.u, X0, sensor, settings.seed,
+                        effects=plant.effects)
+
+    for start in range(0, len(keys), chunk):
+        batch = [(key, unique[key], replace(nominal, params=unique[key].params))
+                 for key in keys[start:start + chunk]]
+        runs = {(key, locked): stage('simulate', validation_run, plant, model, locked)
+                for key, plant, model in batch for locked in (False, True)}
+        models = {}
+        for key, plant, model in batch:
+            models[key] = {'nominal': nominal, 'oracle': model}
+            if 'identified' in settings.estimators:
+                models[key]['identified'] = stage('identify', identified_model, model, plant,
+                                                  sensor, nominal, settings.campaign)
+            models[key] = {name: models[key][name] for name in settings.estimators}
+            done[key] = {name: {} for name in settings.estimators}
+        pairs = [(key, name) for key, _, _ in batch for name in settings.estimators]
+        for locked, figure in ((False, 'q_psi'), (True, 'q_tau')):
+            q = stage('estimate', estimation_q, [runs[key, locked] for key, _ in pairs],
+                      [replace(models[key][name], locked=locked) for key, name in pairs])
+            for (key, name), value in zip(pairs, q, strict=True):
+                done[key][name][figure] = float(value)
+        del runs
+        for key, plant, model in batch:
+            for name, estimator in models[key].items():
+                done[key][name].update(stage('closed_loop', closed_loop_figures, model, plant,
+                                             estimator, reference, settings, sensor))
+            log(f'  [{keys.index(key) + 1}/{len(keys)}] {plant.row} x{plant.magnitude:g}'
+                + (f' draw {plant.draw}' if plant.row == 'parameters' else '') + ': '
+                + '; '.join(f'{name} Q_psi {f["q_psi"]:.2f} % Q_tau {f["q_tau"]:.2f} % ss '
+                            f'{f["ss_error"]:.2f} %' for name, f in done[key].items()))
+    return [PlantResult(p, done[(p.params, p.effects)]) for p in plants], timing
