@@ -9,7 +9,10 @@ Safety (the choice, documented in README and PROTOCOL.md): the driver is either 
 commands, clipped to valve_limits, go to the valves) or SAFE (safe_output, default 0 V = vent both
 muscles). It goes SAFE, latched, on: the command watchdog (no valid command for watchdog_timeout
 after one was received; on_tick), ~/estop (on_estop), a pressure sensor fault (out of range for
-OUT_OF_RANGE_SAMPLES samples in a row, or stuck for stuck_time; on_sample), the device lost
+OUT_OF_RANGE_SAMPLES samples in a row, or stuck for stuck_time; on_sample; the supply-pressure
+transducer, when the board has one, is checked for the range only: a regulated supply may hold one
+reading for long, and a stuck supply reading misleads nobody more than the nominal P_tank would),
+the device lost
 (on_device_lost), a device refused at the handshake (on_device_refused: nothing is written to it)
 and an internal error (on_internal_error). The reason kept is the first one since the last arm
 (an e-stop replaces it). It goes back to ARMED only through ~/arm (on_arm), refused while the
@@ -39,6 +42,9 @@ from pam_model.valve_voltage import U_MAX, U_MIN, sanitise_command
 
 #: Consecutive implausible readings of a pressure sensor that make a sensor fault.
 OUT_OF_RANGE_SAMPLES = 5
+#: The pressure channels' names in log lines and /diagnostics: P1, P2 and the supply transducer.
+CHANNEL_NAMES = ('P1', 'P2', 'P_supply')
+STUCK_CHECKED = 2       # the stuck check covers the muscles' sensors only (P1, P2)
 
 Output = tuple[float, float]
 
@@ -130,8 +136,11 @@ class DriverCore:
         self.commands_clipped = 0
         self.commands_nonfinite = 0
         self.commands_ignored = 0
-        self._out_of_range_run = [0, 0]
+        self._out_of_range_run = [0] * len(CHANNEL_NAMES)
         self._stuck: list[list] = [[None, 0.0], [None, 0.0]]   # per sensor: counts, since (s)
+        #: per channel of the last on_sample: its reading was plausible (valid volts, within
+        #: pressure_limits)
+        self.plausible: tuple[bool, ...] = ()
 
     # ------------------------------------------------------------------ the output
     def _send(self, output: Output, logs: Sequence[Log] = (), message: str = '') -> Action:
@@ -207,22 +216,29 @@ class DriverCore:
         return self._go_safe(f'command watchdog: no valve_command for {self.last_trip_ms:.1f} ms')
 
     def on_sample(self, counts: Sequence[int], pressures: Sequence[float], now: float) -> Action:
-        """A sample's pressure readings: ADC counts and Pa abs of P1, P2, read at `now` (s)."""
+        """A sample's pressure readings: ADC counts and Pa abs of P1, P2 (and P_supply when the
+        board has the supply transducer: a third of each), read at `now` (s)."""
         low, high = self.config.pressure_limits
         stuck_time = self.config.stuck_time
         problems = []
-        for i in (0, 1):
-            ok = self.cal.pressure_volts_valid(i, counts[i]) and low <= pressures[i] <= high
+        plausible = []
+        for i in range(len(counts)):
+            ok = (self.cal.pressure_volts_valid(i, counts[i])
+                  and low <= pressures[i] <= high)   # False for NaN
+            plausible.append(ok)
             self._out_of_range_run[i] = 0 if ok else self._out_of_range_run[i] + 1
             if self._out_of_range_run[i] >= OUT_OF_RANGE_SAMPLES:
-                problems.append(f'P{i + 1} out of range ({pressures[i]:.0f} Pa, '
+                problems.append(f'{CHANNEL_NAMES[i]} out of range ({pressures[i]:.0f} Pa, '
                                 f'{self.cal.adc_volts(counts[i]):.3f} V)')
+            if i >= STUCK_CHECKED:
+                continue
             last = self._stuck[i]
             if counts[i] != last[0]:
                 last[0], last[1] = counts[i], now
             elif stuck_time > 0.0 and now - last[1] >= stuck_time:
-                problems.append(f'P{i + 1} stuck at {counts[i]} counts for '
+                problems.append(f'{CHANNEL_NAMES[i]} stuck at {counts[i]} counts for '
                                 f'{now - last[1]:.2f} s')
+        self.plausible = tuple(plausible)
         fault = '; '.join(problems)
         logs = []
         if fault and not self.sensor_fault:

@@ -12,7 +12,11 @@ reports an encoder and a torque meter fitted, `joint_measured` (angle from the e
 from the torque meter, angular velocity by finite difference of the angle) and, when it reports
 an encoder, `joint_states` (sensor_msgs/JointState for the standard tools: joint_name, the same
 angle and velocity, the torque as effort, empty without a torque meter; 1 sample in
-round(board rate / joint_states_rate)); subscribes
+round(board rate / joint_states_rate)), and, when it reports a supply-pressure transducer
+(PROTOCOL.md 1.1) and the calibration has its pressure.supply section, `supply_pressure`
+(sensor_msgs/FluidPressure, P_tank in Pa abs, the stamp of the pressures sample it came with,
+variance 0: unknown; a reading outside its valid volts or pressure_limits is not published, and
+OUT_OF_RANGE_SAMPLES of them in a row are a sensor fault like P1's); subscribes
 `valve_command`; publishes `~/applied_command` (the voltages the valves actually get, on each
 change) and `/diagnostics`. Services `~/arm`, `~/estop` and `~/reset_statistics` (std_srvs/Trigger;
 the last restarts the sample -> command latency figures on /diagnostics, pam_common.latency).
@@ -52,7 +56,7 @@ from collections.abc import Callable
 
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
@@ -71,9 +75,11 @@ from pam_common.topics import (
     JOINT_MEASURED,
     JOINT_STATES,
     PRESSURES,
+    SUPPLY_PRESSURE,
     VALVE_COMMAND,
 )
 from pam_driver import daq_protocol as proto
+from pam_driver.calibration import SUPPLY
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
 from pam_driver.driver_core import Action, DriverCore, SafetyConfig
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
@@ -133,6 +139,10 @@ class DriverNode(Node):
         self._protocol_errors = 0
         self._reported = {}
         self._prev_angle = None
+        self._supply = False                 # this session publishes supply_pressure
+        self._pub_supply = None              # made at the first board that has the transducer
+        self._supply_value = math.nan        # Pa abs, the last one published
+        self._supply_dropped = 0             # readings not published (implausible, missing)
 
         self._guard = FiniteGuard(self.get_logger())
         self._pub_pressures = self._guard.wrap(
@@ -378,6 +388,7 @@ class DriverNode(Node):
             # whatever the valves had before: start from the safe output
             self._apply(self._core.on_connected())
         self._prev_angle = None
+        supply = self._start_supply(info)
         if not self._joint_states.set_sample_rate(info.rate):
             self.get_logger().warning(
                 f"joint_states_rate {self.config['joint_states_rate']:g} Hz is above the "
@@ -385,8 +396,25 @@ class DriverNode(Node):
         self.get_logger().info(
             f'connected to {self.config["port"]}: protocol {info.major}.{info.minor}, '
             f'{info.rate} Hz, encoder {"yes" if info.has_encoder else "no"}, torque meter '
-            f'{"yes" if info.has_torque else "no"}'
+            f'{"yes" if info.has_torque else "no"}, supply pressure {supply}'
             + (f'; {self._joint_states.describe()}' if info.has_encoder else ''))
+
+    def _start_supply(self, info: proto.DeviceInfo) -> str:
+        """Whether this session publishes supply_pressure (the board reports the transducer and
+        the calibration converts it); the start line's words for it."""
+        self._supply = info.has_supply and self.cal.has_supply
+        if not info.has_supply:
+            return 'no'
+        if not self.cal.has_supply:
+            self.get_logger().warning(
+                f'the board reports a supply-pressure transducer but the calibration '
+                f'{self.cal.source} has no pressure.supply section: supply_pressure not '
+                'published', throttle_duration_sec=10.0)
+            return 'yes (not calibrated: not published)'
+        if self._pub_supply is None:
+            self._pub_supply = self._guard.wrap(
+                self.create_publisher(FluidPressure, SUPPLY_PRESSURE, SAMPLE_QOS), hold=True)
+        return f'yes (publishing {self._pub_supply.topic_name})'
 
     def _disconnect(self) -> None:
         with self._lock:
@@ -418,7 +446,7 @@ class DriverNode(Node):
                 self._rx_seq.update(frame.seq)
                 try:
                     if frame.type == proto.SAMPLE:
-                        self._on_sample(proto.parse_sample(frame), now)
+                        self._on_sample(proto.parse_sample(frame, self._supply), now)
                         last_sample = now
                     elif frame.type == proto.DEVICE_HEARTBEAT:
                         heartbeat = frame.fields()
@@ -444,17 +472,27 @@ class DriverNode(Node):
 
     def _on_sample(self, s: proto.Sample, now: float) -> None:
         cal = self.cal
-        p = (cal.pressure(0, s.adc_p1), cal.pressure(1, s.adc_p2))
-        self._decide(lambda: self._core.on_sample((s.adc_p1, s.adc_p2), p, now))
+        counts = (s.adc_p1, s.adc_p2)
+        supply = self._supply and s.adc_supply is not None
+        if supply:
+            counts += (s.adc_supply,)
+        elif self._supply:
+            with self._lock:
+                self._protocol_errors += 1     # a SAMPLE cut short before its supply field
+                self._supply_dropped += 1
+        p = tuple(cal.pressure(i, c) for i, c in enumerate(counts))
+        self._decide(lambda: self._core.on_sample(counts, p, now))
         t_ns = self.get_clock().now().nanoseconds
         self._timing.on_sample(t_ns)
         stamp = ns_stamp(t_ns)
         msg = Pressures()
         msg.header.stamp = stamp
         msg.header.frame_id = self._frame_id
-        msg.p1, msg.p2 = p
+        msg.p1, msg.p2 = p[0], p[1]
         msg.sample = self._ticks.update(s.tick)
         self._pub_pressures.publish(msg)
+        if supply:
+            self._publish_supply(stamp, p[SUPPLY], self._core.plausible[SUPPLY])
         info = self._device
         if info is not None and info.has_encoder:
             angle = cal.angle(s.encoder)
@@ -475,6 +513,21 @@ class DriverNode(Node):
         with self._lock:
             self._samples += 1
             self._vents.on_sample(s.status)
+
+    def _publish_supply(self, stamp, pressure: float, plausible: bool) -> None:
+        """supply_pressure with the pressures sample's stamp; an implausible reading (a wire
+        break, out of pressure_limits) is counted, not published."""
+        if not plausible:
+            with self._lock:
+                self._supply_dropped += 1
+            return
+        supply = FluidPressure()
+        supply.header.stamp = stamp
+        supply.header.frame_id = self._frame_id
+        supply.fluid_pressure = pressure
+        supply.variance = 0.0                   # unknown to the driver
+        self._pub_supply.publish(supply)
+        self._supply_value = pressure
 
     # ------------------------------------------------------------------ shutdown
     def stop(self) -> None:
@@ -508,6 +561,10 @@ class DriverNode(Node):
                 'device protocol': f'{info.major}.{info.minor}' if info else 'none',
                 'encoder fitted': bool(info and info.has_encoder),
                 'torque meter fitted': bool(info and info.has_torque),
+                'supply transducer fitted': bool(info and info.has_supply),
+                'supply_pressure published': self._supply,
+                'supply pressure (Pa)': self._supply_value,
+                'supply readings not published': self._supply_dropped,
                 'achieved rate (Hz)': window.achieved_rate if window.samples else 0.0,
                 'samples received': self._samples,
                 'connects': core.connects,

@@ -21,10 +21,19 @@ of COMMAND frames and the first and last command (V) of each, the HELLOs refused
 version, the device watchdog trips, the samples sent and the faults injected. The exit line on
 stdout says the last command too.
 
+Supply pressure (PROTOCOL.md 1.1): --supply-sensor fits the supply line's transducer: the
+device reports it in HELLO_ACK and appends its ADC reading to every SAMPLE, the plant's P_tank
+of that sample (with the scenario's droop and ripple when its effects have them) through the
+same noise as P1, P2 and the calibration's pressure.supply channel
+(pam_driver.supply_sensor). Without it the frames are those of a board without the transducer,
+byte for byte.
+
 Faults (times in s after the first handshake): --garbage-every (random bytes between frames),
 --corrupt-every (one byte of a sample frame flipped: CRC error), --drop-every (a sample frame not
 sent: sequence gap), --disconnect-at/--disconnect-for (the device disappears: pty closed, link
-removed; then a new pty), --stuck-sensor p1|p2 --stuck-at (that ADC channel frozen).
+removed; then a new pty), --stuck-sensor p1|p2 --stuck-at (that ADC channel frozen),
+--broken-sensor p1|p2|supply --broken-at (that ADC channel reads 0 counts from then on: a wire
+break).
 """
 
 from __future__ import annotations
@@ -40,6 +49,7 @@ import tty
 
 from pam_common.timing import DeadlineSchedule
 from pam_driver import daq_protocol as proto
+from pam_driver.calibration import SUPPLY
 
 MAX_PENDING = 65536   # bytes queued for a host that does not read: beyond, dropped
 HOST_SILENCE_STOP = 1.0  # s without host frames: stop streaming
@@ -74,6 +84,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help='do not step the plant (static readings, calibration checks)')
     parser.add_argument('--no-encoder', action='store_true', help='report no encoder fitted')
     parser.add_argument('--no-torque', action='store_true', help='report no torque meter fitted')
+    parser.add_argument('--supply-sensor', action='store_true',
+                        help="fit a supply-pressure transducer (protocol 1.1): the plant's P_tank "
+                             'in every SAMPLE, with the noise of --noise-std; the calibration '
+                             'needs a pressure.supply section')
     parser.add_argument('--device-watchdog', type=float, default=0.25, metavar='S',
                         help='vent both valves after this long without host frames (default 0.25)')
     parser.add_argument('--duration', type=float, default=0.0, metavar='S',
@@ -104,6 +118,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help='freeze this pressure ADC channel at --stuck-at')
     faults.add_argument('--stuck-at', type=float, default=1.0, metavar='S',
                         help='when the stuck sensor freezes (default 1.0)')
+    faults.add_argument('--broken-sensor', choices=('p1', 'p2', 'supply'),
+                        help='this pressure ADC channel reads 0 counts (a wire break) from '
+                             '--broken-at on')
+    faults.add_argument('--broken-at', type=float, default=1.0, metavar='S',
+                        help='when the broken sensor breaks (default 1.0)')
     return parser
 
 
@@ -186,6 +205,7 @@ class Every:
 class Emulator:
     def __init__(self, args):
         from pam_driver.calibration import load
+        from pam_driver.supply_sensor import SupplySensor
         from pam_model.cli.common import build_model
         from pam_model.model import PamModel
         from pam_model.rig import SimulatedRig
@@ -193,6 +213,11 @@ class Emulator:
 
         self.args = args
         self.cal = load(args.calibration)
+        if args.supply_sensor and not self.cal.has_supply:
+            raise ValueError(f'--supply-sensor: the calibration {self.cal.source} has no '
+                             'pressure.supply section')
+        if args.broken_sensor == 'supply' and not args.supply_sensor:
+            raise ValueError('--broken-sensor supply needs --supply-sensor')
         model, scenario = build_model(args)
         if args.rate != 1000:
             model = PamModel(params=model.params, valve_map=model.valve_map,
@@ -205,9 +230,11 @@ class Emulator:
             raise ValueError(f'--initial-command must be within [0, 10] V, got {list(u0)}')
         self.rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed, u0=u0,
                                 effects=scenario.effects)
+        self.supply = SupplySensor(self.rig, sensor, args.seed) if args.supply_sensor else None
         self.rng = random.Random(args.seed)
         flags = (0 if args.no_encoder else proto.FLAG_ENCODER) | (
-            0 if args.no_torque else proto.FLAG_TORQUE)
+            0 if args.no_torque else proto.FLAG_TORQUE) | (
+            proto.FLAG_SUPPLY if args.supply_sensor else 0)
         major, minor = args.protocol_version
         self.info = proto.DeviceInfo(major, minor, args.rate, self.cal.adc_bits,
                                      self.cal.dac_bits, flags)
@@ -221,6 +248,7 @@ class Emulator:
         self.watchdog_trips = 0
         self.rx_frames = 0
         self.stuck_value = None
+        self.broken = False
         self.faults = {'garbage': Every(args.garbage_every), 'corrupt': Every(args.corrupt_every),
                        'drop': Every(args.drop_every)}
         self.counts = {'garbage': 0, 'corrupt': 0, 'drop': 0, 'disconnect': 0}
@@ -300,8 +328,17 @@ class Emulator:
         encoder = cal.encoder_counts(float(s.x[0])) if not self.args.no_encoder else 0
         torque = cal.torque_counts(float(s.torque)) if not self.args.no_torque else 0
         status = proto.STATUS_VENTED if self.watchdog_tripped else 0
+        supply = None
+        if self.supply is not None:
+            supply = cal.pressure_counts(SUPPLY, self.supply.measure())
+        if self.args.broken_sensor and t_fault >= self.args.broken_at:
+            if not self.broken:
+                self.broken = True
+                print(f'pam-emulator: sensor {self.args.broken_sensor} broken', flush=True)
+            adc1, adc2, supply = (0 if self.args.broken_sensor == name else value for name, value
+                                  in (('p1', adc1), ('p2', adc2), ('supply', supply)))
         return proto.sample(self._next_seq(), proto.Sample(self.tick, adc1, adc2, encoder,
-                                                           torque, status))
+                                                           torque, status, supply))
 
     def step(self, now: float) -> None:
         args = self.args

@@ -102,6 +102,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'samples are taken back to back so the plant keeps pace with the wall clock; a '
               'longer stall is skipped (the plant pauses). 0: always skip.',
               range=CATCH_UP_RANGE),
+    ParamSpec('publish_supply_pressure', False, 'bool', '',
+              "Publish supply_pressure (sensor_msgs/FluidPressure, Pa abs): the plant's supply "
+              'tank pressure P_tank of every sample (with the droop and ripple of the mismatch '
+              "scenario's effects, if any; else nominal) through the pressure sensor model, "
+              'stamped like pressures: a supply-pressure transducer.'),
     ParamSpec('publish_clock', False, 'bool', '',
               'Publish /clock (rosgraph_msgs/Clock) with the stamp of every sample '
               '(simulated time t_k in lockstep).'),
@@ -135,6 +140,8 @@ SUMMARY = (
     'standard tools',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
     '  publishes   /clock          rosgraph_msgs/Clock              if publish_clock',
+    '  publishes   supply_pressure sensor_msgs/FluidPressure        P_tank (Pa abs), if '
+    'publish_supply_pressure',
 )
 
 
@@ -284,4 +291,10 @@ def describe(config: SimConfig) -> list[str]:
                    if v['lockstep_timeout'] > 0 else '; never re-publish')
     lines.append(timing)
     lines.append(f'sensor: {config.sensor_source}')
+    if v['publish_supply_pressure']:
+        droop = config.scenario is not None and (config.scenario.effects.supply_droop > 0.0
+                                                 or config.scenario.effects.supply_ripple > 0.0)
+        lines.append(f'supply pressure: published, P_tank {config.parameters.P_tank:g} Pa abs '
+                     + ("with the scenario's droop/ripple" if droop else '(constant)')
+                     + ' through the same sensor model (its own noise draws)')
     return lines

@@ -19,6 +19,14 @@ Topics (relative names resolve under the node namespace, '/pam' unless remapped 
                                                      sample, or fewer (joint_states_rate)
     /diagnostics    diagnostic_msgs/DiagnosticArray  published about once a second (absolute name)
     /clock          rosgraph_msgs/Clock              published with every sample if publish_clock
+    supply_pressure sensor_msgs/FluidPressure        published with every sample if
+                                                     publish_supply_pressure: the plant's supply
+                                                     pressure P_tank (Pa abs; the effects' droop
+                                                     and ripple, when the scenario has them)
+                                                     measured by the pressure sensor model,
+                                                     the stamp of the sample's pressures, variance
+                                                     noise^2 + resolution^2/12 (Pa^2)
+                                                     (pam_driver.supply_sensor)
 
 QoS: pressures, joint_measured, joint_states and valve_command are RELIABLE, KEEP_LAST depth 100,
 VOLATILE (a 1 kHz loop across processes loses none with depth 100; a subscriber that joins late
@@ -93,7 +101,7 @@ from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
@@ -112,9 +120,11 @@ from pam_common.topics import (
     JOINT_MEASURED,
     JOINT_STATES,
     PRESSURES,
+    SUPPLY_PRESSURE,
     VALVE_COMMAND,
 )
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
+from pam_driver.supply_sensor import SupplySensor
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
 
@@ -193,6 +203,11 @@ class SimNode(Node):
             self.config.rate)
         self._pub_clock = (self.create_publisher(Clock, CLOCK, CLOCK_QOS)
                            if values['publish_clock'] else None)
+        self._supply = self._pub_supply = None
+        if values['publish_supply_pressure']:
+            self._supply = SupplySensor(self._rig, self.config.sensor, values['seed'])
+            self._pub_supply = self._guard.wrap(
+                self.create_publisher(FluidPressure, SUPPLY_PRESSURE, SAMPLE_QOS), hold=True)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
         self.create_service(Trigger, '~/reset_statistics',
@@ -210,6 +225,7 @@ class SimNode(Node):
             + (f'{self._joint_states.describe()}, ' if rate else '')
             + '/diagnostics'
             + (', /clock' if self._pub_clock else '')
+            + (f', {self._pub_supply.topic_name}' if self._pub_supply else '')
             + f'; subscribing {self._sub_command.topic_name}')
 
     def start(self) -> None:
@@ -266,15 +282,22 @@ class SimNode(Node):
         joint.header.frame_id = self._frame_id
         joint.angle, joint.angular_velocity, joint.torque = values[2], values[3], values[4]
         clock = Clock(clock=stamp) if self._pub_clock is not None else None
-        return clock, pressures, joint
+        supply = None
+        if self._supply is not None:
+            supply = FluidPressure(fluid_pressure=self._supply.measure(),
+                                   variance=self._supply.variance)
+            supply.header = pressures.header
+        return clock, pressures, joint, supply
 
     def _publish(self, messages) -> None:
         if messages is None:
             return
-        clock, pressures, joint = messages
+        clock, pressures, joint, supply = messages
         if clock is not None:
             self._pub_clock.publish(clock)
         self._pub_pressures.publish(pressures)
+        if supply is not None:
+            self._pub_supply.publish(supply)
         self._pub_joint.publish(joint)
         self._joint_states.publish(joint.header.stamp, pressures.sample, joint.angle,
                                    joint.angular_velocity, joint.torque)
@@ -417,6 +440,7 @@ class SimNode(Node):
                 'joint mode': self.config.values['joint_mode'],
                 'plant parameters': self.config.values['plant_parameters'],
                 'mismatch': self.config.values['mismatch'] or 'none',
+                'supply_pressure published': self._supply is not None,
                 'non-finite samples suppressed': self._nonfinite_samples,
                 'last sample counter': rig.k + 1,
             }

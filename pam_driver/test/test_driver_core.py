@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from pam_driver import calibration
+from pam_driver.calibration import SUPPLY
 from pam_driver.driver_config import build_config
 from pam_driver.driver_core import NOTHING, OUT_OF_RANGE_SAMPLES, DriverCore, Log, SafetyConfig
 
@@ -277,6 +278,28 @@ def test_a_stuck_sensor_is_a_fault_after_stuck_time():
         assert action is NOTHING, k
     action = sample(core, T0 + 0.5, (p1, p2))
     assert core.sensor_fault == f'P2 stuck at {p2} counts for 0.50 s'
+    assert action.output == SAFE and not core.armed
+
+
+def test_the_supply_transducer_is_checked_for_its_range_not_for_being_stuck():
+    """A board with the supply transducer: a third reading. A regulated supply may hold one
+    reading: never 'stuck'; out of its valid volts for OUT_OF_RANGE_SAMPLES samples in a row: a
+    sensor fault like P1's (safe output); `plausible` says which readings may be published."""
+    core = make(stuck_time=0.5)
+    supply = CAL.pressure_counts(SUPPLY, 710e3)
+    for k in range(200):                               # P1, P2 move, the supply holds
+        p1, p2 = counts()
+        adc = (p1 + k % 2, p2 + k % 2, supply)
+        action = core.on_sample(adc, [CAL.pressure(i, c) for i, c in enumerate(adc)],
+                                T0 + 0.005 * k)
+        assert action is NOTHING, (k, core.sensor_fault)
+    assert core.plausible == (True, True, True)
+    broken = (*counts(), 0)                            # 0 V: below valid_volts
+    for k in range(OUT_OF_RANGE_SAMPLES):
+        action = core.on_sample(broken, [CAL.pressure(i, c) for i, c in enumerate(broken)],
+                                T0 + 1.0 + k * 1e-3)
+        assert core.plausible == (True, True, False)
+    assert core.sensor_fault.startswith('P_supply out of range'), core.sensor_fault
     assert action.output == SAFE and not core.armed
 
 

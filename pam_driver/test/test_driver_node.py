@@ -11,14 +11,15 @@ import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import is_status_of
-from pam_driver import calibration
+from pam_driver import calibration, daq_protocol as proto
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 STARTUP = 45.0
+HOST_VERSION = f'{proto.PROTOCOL_MAJOR}.{proto.PROTOCOL_MINOR}'   # driver_node's, in its HELLO
 
 
 class Rig:
@@ -37,6 +38,7 @@ class Rig:
         self.pressures = probe.subscribe(Pressures, '/pam/pressures', depth=1000)
         self.joint = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
         self.joint_states = probe.subscribe(JointState, '/pam/joint_states', depth=1000)
+        self.supply = probe.subscribe(FluidPressure, '/pam/supply_pressure', depth=1000)
         self.applied = probe.subscribe(ValveCommand, '/pam/driver_node/applied_command')
         self.diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
         self.commands = probe.publisher(ValveCommand, '/pam/valve_command')
@@ -282,7 +284,7 @@ def test_protocol_version_mismatch_is_refused_safely(rig):
     values = r.wait_values(lambda v: int(v['handshake failures']) >= 2, 10.0,
                            'a second refused handshake (the driver retries)')
     assert 'protocol version mismatch' in values['device refused'], values
-    assert 'speaks 2.3, this driver 1.0' in values['device refused'], values
+    assert f'speaks 2.3, this driver {HOST_VERSION}' in values['device refused'], values
     assert values['connected'] == 'false' and values['armed'] == 'false', values
     assert values['device protocol'] == 'none' and values['samples received'] == '0', values
     status = r.status()
@@ -293,10 +295,12 @@ def test_protocol_version_mismatch_is_refused_safely(rig):
     assert len(r.pressures) == 0 and len(r.joint) == 0
     assert r.last_applied() is None
     log = r.driver.stderr
-    assert 'protocol version mismatch: the device speaks 2.3, this driver 1.0' in log, log
+    assert f'protocol version mismatch: the device speaks 2.3, this driver {HOST_VERSION}' \
+        in log, log
     assert log.count('refusing the device') == 1, 'repeats are throttled to every 10 s'
     device = r.device()
-    assert device['protocol'] == '2.3' and device['refused_hellos'].get('1.0', 0) >= 2, device
+    assert device['protocol'] == '2.3', device
+    assert device['refused_hellos'].get(HOST_VERSION, 0) >= 2, device
     assert device['sessions'] == [] and device['samples_sent'] == 0, device
     assert device['last_command'] is None, device
 
@@ -314,6 +318,45 @@ def test_board_without_encoder_and_torque_meter(rig):
     assert values['device refused'] == 'none' and values['connected'] == 'true', values
     assert len(r.joint) == 0, 'joint_measured without an encoder and a torque meter'
     assert len(r.joint_states) == 0, 'joint_states without an encoder'
+    assert len(r.supply) == 0 and values['supply transducer fitted'] == 'false', values
+    assert 'supply pressure no' in r.driver.stderr
+
+
+def test_supply_pressure_from_the_board_and_its_wire_break(rig, helpers):
+    """A board with the supply transducer (protocol 1.1): supply_pressure carries the emulated
+    P_tank (the nominal plant's, 710 kPa abs) within its noise, stamped as the pressures sample it
+    came with; said in the start line and on /diagnostics. Its wire breaks (0 counts): a sensor
+    fault like P1's (safe output, ~/arm refused), and no reading is published from then on."""
+    cal = calibration.load()
+    r = rig(emulator_args=('--supply-sensor', '--broken-sensor', 'supply', '--broken-at', '4.0'),
+            driver_params=('watchdog_timeout:=0.0', 'arm_at_start:=true'))
+    r.driver.wait_for(lambda: len(r.supply) > 300, 10.0, 'supply_pressure')
+    readings = r.supply.messages()
+    mean = _mean(m.fluid_pressure for m in readings)
+    assert abs(mean - 710e3) <= cal.pressure_resolution(calibration.SUPPLY), mean
+    # --noise-std 500 Pa: the readings spread about it, quantised by the ADC
+    spread = max(abs(m.fluid_pressure - 710e3) for m in readings)
+    assert cal.pressure_resolution(calibration.SUPPLY) <= spread <= 5e3, spread
+    assert all(m.variance == 0.0 and m.header.frame_id == 'pam_joint' for m in readings)
+    pressures = _by_stamp(helpers, r.pressures)
+    stamps = [helpers.stamp_ns(m.header.stamp) for m in readings]
+    assert sum(s in pressures for s in stamps) >= 0.9 * len(stamps), 'stamped as its sample'
+    assert 'supply pressure yes (publishing /pam/supply_pressure)' in r.driver.stderr
+    values = r.wait_values(lambda v: v['supply_pressure published'] == 'true', 3.0, 'diagnostics')
+    assert values['supply transducer fitted'] == 'true', values
+    assert abs(float(values['supply pressure (Pa)']) - 710e3) < 5e3, values
+    # the wire break
+    values = r.wait_values(lambda v: 'P_supply out of range' in v['sensor fault'], 8.0,
+                           'the supply sensor fault')
+    assert values['armed'] == 'false' and 'P_supply' in values['safe reason'], values
+    assert r.status().level == DiagnosticStatus.ERROR
+    assert not r.call('arm').success
+    since = time.monotonic()
+    time.sleep(0.3)
+    assert not r.supply.since(since), 'a broken reading is not published'
+    assert int(r.values()['supply readings not published']) > 100
+    assert all(700e3 < m.fluid_pressure < 720e3 for m in r.supply.messages())
+    assert r.driver.alive()
 
 
 def _by_stamp(helpers, collector) -> dict:

@@ -7,6 +7,7 @@ import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from sensor_msgs.msg import FluidPressure
 
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
@@ -37,6 +38,7 @@ def _mean(values):
 def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     sim = sim_node('--params-file', helpers.installed_config('sim_node.yaml', 'pam_driver'))
     got = probe.subscribe(Pressures, '/pam/pressures')
+    supply = probe.subscribe(FluidPressure, '/pam/supply_pressure')
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
     sim.wait_for(lambda: len(got) > 0, STARTUP, 'the first /pam/pressures sample')
 
@@ -47,6 +49,8 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     stamps = [helpers.stamp_ns(m.header.stamp) * 1e-9 for m in window]
 
     assert len(stamps) > 100, f'only {len(stamps)} samples in {MEASURE} s'
+    assert len(supply) == 0, 'publish_supply_pressure is off by default'
+    assert probe.node.count_publishers('/pam/supply_pressure') == 0
     assert all(b > a for a, b in itertools.pairwise(stamps)), 'stamps must strictly increase'
     counters = [m.sample for m in window]
     assert all(b > a for a, b in itertools.pairwise(counters)), 'so must Pressures.sample'
