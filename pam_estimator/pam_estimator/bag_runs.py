@@ -12,7 +12,10 @@ From a Jazzy MCAP bag (pam_bag.bags) holding /pam/pressures, /pam/valve_command 
 * x: measured angle and angular velocity (joint_measured at the sample's stamp; linearly
   interpolated over stamps for samples whose measurement is missing) and the measured
   pressures; torque: the measured torque; force, friction, subsystem: not measured (NaN / 0);
-* locked: the measured angle stays within LOCKED_TOLERANCE (0.2 deg) over the bag, unless given.
+* locked: the measured angle stays within LOCKED_TOLERANCE (0.2 deg) over the bag, unless given;
+* supply (optional): if the bag holds /pam/supply_pressure (sensor_msgs/FluidPressure, Pa abs),
+  the latest reading stamped at or before each sample's stamp and at most SUPPLY_STALE (0.1 s)
+  older (NaN otherwise: the UKF then uses its model's P_tank); None without the topic.
 """
 
 from __future__ import annotations
@@ -27,9 +30,12 @@ from pam_common import topics as stack_topics
 from pam_common.stamps import ns_pair, stamp_ns
 from pam_model.simulate import SimulationResult
 
+from .estimator_core import SUPPLY_STALE
+
 PRESSURES = stack_topics.absolute(stack_topics.PRESSURES)
 COMMAND = stack_topics.absolute(stack_topics.VALVE_COMMAND)
 MEASURED = stack_topics.absolute(stack_topics.JOINT_MEASURED)
+SUPPLY = stack_topics.absolute(stack_topics.SUPPLY_PRESSURE)
 INITIAL_COMMAND = (5.5, 5.5)
 LOCKED_TOLERANCE = math.radians(0.2)   # rad: a locked rig's encoder may jitter by a count or two
 
@@ -44,6 +50,7 @@ class BagRun:
     measured_missing: int        # samples without their own joint_measured (interpolated)
     duplicates: int              # pressure messages with an already seen stamp (ignored)
     first_commanded: int = 0     # first sample with a recorded command in effect (0 if none)
+    supply: np.ndarray | None = None   # (N,) Pa abs, the measured supply (NaN: none fresh)
 
 
 def is_bag(path) -> bool:
@@ -69,8 +76,11 @@ def load_bag_run(path, locked: bool | None = None,
             raise BagError(f'{contents.path}: no {topic} in the bag (it has: '
                            f'{", ".join(sorted(contents.topics)) or "nothing"}); a run needs '
                            f'{", ".join(topics)}')
+    supply_topic = stack_topics.absolute(stack_topics.SUPPLY_PRESSURE, namespace)
+    has_supply = supply_topic in contents.topics
     store = make_typestore()
-    check_definitions(bag_files(contents.path), topics, store)   # only the topics read
+    check_definitions(bag_files(contents.path), topics + [supply_topic] * has_supply,
+                      store)   # only the topics read
     pressures = _decode(contents, store, topics[0])
     commands = _decode(contents, store, topics[1])
     measured = _decode(contents, store, topics[2])
@@ -118,9 +128,26 @@ def load_bag_run(path, locked: bool | None = None,
         t=t_rel * 1e-9, u=u, x=np.column_stack([angle, truth[:, 1], p]), torque=truth[:, 2],
         force=np.full((n, 2), np.nan), friction=np.zeros(n), subsystem=np.zeros(n, dtype=int),
         p_measured=p.copy(), locked=bool(locked))
+    supply = (_supply_at(_decode(contents, store, supply_topic), stamps) if has_supply
+              else None)
     return BagRun(run=run, stamps_ns=stamps, commands=len(commands),
                   measured_missing=int(n - exact.sum()), duplicates=len(pressures) - n,
-                  first_commanded=first_commanded)
+                  first_commanded=first_commanded, supply=supply)
+
+
+def _supply_at(readings, stamps) -> np.ndarray:
+    """(N,) supply pressure (Pa abs) at each sample stamp: the latest reading at or before it,
+    NaN if none or older than SUPPLY_STALE."""
+    supply = np.full(len(stamps), np.nan)
+    if not readings:
+        return supply
+    s_stamps = np.array([s for s, _ in readings], dtype=np.int64)
+    order = np.argsort(s_stamps, kind='stable')
+    values = np.array([readings[j][1].fluid_pressure for j in order], dtype=float)
+    idx = np.searchsorted(s_stamps[order], stamps, side='right') - 1
+    fresh = (idx >= 0) & ((stamps - s_stamps[order][np.maximum(idx, 0)]) * 1e-9 <= SUPPLY_STALE)
+    supply[fresh] = values[idx[fresh]]
+    return supply
 
 
 def load_run(path, locked: bool | None = None) -> SimulationResult:
@@ -142,13 +169,14 @@ SIMULATED_START_NS = 1_700_000_000 * 1_000_000_000
 
 def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
                   start_ns: int = SIMULATED_START_NS,
-                  namespace: str = stack_topics.DEFAULT_NAMESPACE) -> Path:
+                  namespace: str = stack_topics.DEFAULT_NAMESPACE, supply=None) -> Path:
     """Write a simulated run as the bag the live stack records (the inverse of load_bag_run).
 
     Per sample k, stamped start_ns + t[k]: /pam/pressures (the sensor readings p_measured,
     sample counter k + 1 as sim_node sets it),
     /pam/joint_measured (the true angle, velocity and torque) and /pam/valve_command (u[k]),
-    which is what sim_node, profile_player and bag_record write for the same profile. The output
+    which is what sim_node, profile_player and bag_record write for the same profile; with
+    supply (N,) Pa abs also /pam/supply_pressure (sensor_msgs/FluidPressure). The output
     directory must not exist.
     """
     from pam_bag.bags import BagWriter
@@ -160,6 +188,9 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
     msg_types = {'pressures': 'pam_interfaces/msg/Pressures',
                  'command': 'pam_interfaces/msg/ValveCommand',
                  'measured': 'pam_interfaces/msg/JointMeasurement'}
+    if supply is not None:
+        names['supply'] = stack_topics.absolute(stack_topics.SUPPLY_PRESSURE, namespace)
+        msg_types['supply'] = 'sensor_msgs/msg/FluidPressure'
     for key, topic in names.items():
         writer.add_topic(topic, msg_types[key])
     classes = {key: store.types[msgtype] for key, msgtype in msg_types.items()}
@@ -179,7 +210,10 @@ def write_run_bag(run: SimulationResult, path, frame_id: str = 'pam_joint',
                 'command': classes['command'](header=header, u1=float(run.u[k, 0]),
                                               u2=float(run.u[k, 1])),
             }
-            for key in ('pressures', 'measured', 'command'):
+            if supply is not None:
+                rows['supply'] = classes['supply'](header=header,
+                                                   fluid_pressure=float(supply[k]), variance=0.0)
+            for key in rows:
                 writer.write(names[key], stamp, store.serialize_cdr(rows[key], msg_types[key]))
     finally:
         writer.close()

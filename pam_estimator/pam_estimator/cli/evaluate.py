@@ -10,10 +10,11 @@ from pam_bag.bags import BagError
 from pam_model.cli.common import run_cli
 from pam_model.metrics import DEFAULT_TRANSIENT, Metrics
 from pam_model.model import PamModel
+from pam_model.model_extensions import load_extensions
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
-from ..bag_runs import load_run
+from ..bag_runs import SUPPLY, is_bag, load_bag_run, load_run
 from ..evaluation import (
     PAPER_TABLE_III,
     STARTS,
@@ -49,6 +50,14 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help="parameters the estimator assumes (default: %(default)s)")
     parser.add_argument('--kappa', default='default', metavar='FILE',
                         help='valve map table CSV (default: shipped table)')
+    parser.add_argument('--extensions', default='', metavar='FILE',
+                        help='extensions.yaml of the estimators\' model (pam-identify writes it; '
+                             'docs/model_extensions.md): valve lag, dead volume, force '
+                             'hysteresis for both, sensor offset and gain for the UKF '
+                             '(default: none, the paper\'s model)')
+    parser.add_argument('--supply', action='store_true',
+                        help='the UKF predicts with the measured supply pressure of the bag '
+                             '(/pam/supply_pressure) as P_tank; bags only')
     parser.add_argument('--tuning', default='default', choices=sorted(TUNINGS),
                         help='UKF Q, R, P(0) preset (default: %(default)s)')
     parser.add_argument('--transient', type=float, default=DEFAULT_TRANSIENT, metavar='S',
@@ -71,21 +80,37 @@ def parse_args(argv=None) -> argparse.Namespace:
     return args
 
 
+def load_run_and_supply(path, locked, use_supply: bool):
+    """(run, supply (N,) Pa abs or None); ValueError if use_supply and the run has none."""
+    if not use_supply:
+        return load_run(path, locked), None
+    if not is_bag(path):
+        raise ValueError(f'{path}: --supply needs a bag (with {SUPPLY})')
+    bag = load_bag_run(path, locked)
+    if bag.supply is None:
+        raise ValueError(f'{path}: --supply: no {SUPPLY} in the bag')
+    return bag.run, bag.supply
+
+
 def body(argv=None) -> int:
     args = parse_args(argv)
     model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.kappa))
     tuning = TUNINGS[args.tuning]
+    extensions = load_extensions(args.extensions)
     for path in args.runs:
         try:
-            run = load_run(path, args.locked)
+            run, supply = load_run_and_supply(path, args.locked, args.supply)
         except BagError as exc:
             raise ValueError(str(exc)) from exc
         kind = quantity(run)
-        table, alone, ukf = evaluate(run, model, tuning, args.start)
+        table, alone, ukf = evaluate(run, model, tuning, args.start, extensions, supply)
         after = table_after(run, alone, ukf, args.transient)
         print(f'{path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
               f'{"locked" if run.locked else "free"} joint, tuning {args.tuning!r}, start '
               f'{args.start!r}')
+        print(f'model extensions: {extensions.describe()}'
+              + (f' ({args.extensions})' if args.extensions else '')
+              + (', supply pressure: measured' if supply is not None else ''))
         print(format_table(kind, table, after, args.transient))
         beats = all(getattr(table['ukf'], m) < getattr(table['model'], m) for m in 'IMQ')
         print(f'UKF beats the model alone on I, M and Q: {"yes" if beats else "NO"}')
@@ -100,7 +125,8 @@ def body(argv=None) -> int:
         if args.compare_models:
             print(f'\nUKF with each model variant ({kind}):')
             print(f'{"variant":<30}       I        M        Q   | paper Table III (online angle)')
-            for label, m in compare_models(run, model, tuning, args.start).items():
+            for label, m in compare_models(run, model, tuning, args.start, extensions,
+                                           supply).items():
                 law = label.split(' ', 1)[1]
                 ref = PAPER_TABLE_III.get(law) if label.startswith('friction') else None
                 ref_text = (f'| {ref.I:.2f} / {ref.M:.2f} / {100 * ref.Q:.2f} %'
