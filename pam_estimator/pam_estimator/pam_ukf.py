@@ -42,7 +42,7 @@ from pam_model.physics import (
     subsystem_index,
     valve_opening,
 )
-from pam_model.valve_voltage import U_MAX, U_MIN
+from pam_model.valve_voltage import sanitise_command
 
 from .unscented import (
     julier_sigma_points,
@@ -353,7 +353,7 @@ class PamUkf:
     def _step_with_effects(self, y, u_prev, supply) -> None:
         """ukf_step with the extensions and the measured supply: fills self._info."""
         m, e, info = self.model, self.extensions, self._info
-        u = np.clip(np.nan_to_num(u_prev, nan=U_MIN, posinf=U_MIN, neginf=U_MIN), U_MIN, U_MAX)
+        u = (sanitise_command(float(u_prev[0]))[0], sanitise_command(float(u_prev[1]))[0])
         if self._valve is None:
             self._valve = ValveLag(m.valve_map, m.h, e.valve_time_constant, u)
         alpha1, alpha2 = self._valve.openings(u)
@@ -362,7 +362,8 @@ class PamUkf:
             P_tank = float(supply)
         self._record['P_tank'] = P_tank
         lo, hi = self.y_range
-        if np.all(np.isfinite(y)) and np.all((lo <= y) & (y <= hi)):
+        y1, y2 = float(y[0]), float(y[1])
+        if lo <= y1 <= hi and lo <= y2 <= hi:       # False for NaN
             y = (y - self._sensor_offset) / self._sensor_gain
         else:
             y = np.full(2, np.nan)                  # a faulty raw reading: no update
