@@ -28,6 +28,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from math import nan
 
 import numpy as np
 from numba import njit
@@ -134,11 +135,15 @@ def estimation_q(runs, models, tuning=DEFAULT_TUNING) -> np.ndarray:
 
 
 def identified_model(plant_model: PamModel, plant: Plant, sensor, nominal: PamModel, plan):
-    """The model pam-identify (partial) makes of a simulated campaign on the plant."""
+    """The model pam-identify (partial) makes of a simulated campaign on the plant, or None
+    when the fits give an impossible set (IdentificationError: its figures are then NaN)."""
     from pam_model.identification.campaign import records_of, simulate_campaign
-    from pam_model.identification.identify import identify
+    from pam_model.identification.identify import IdentificationError, identify
     runs = simulate_campaign(plant_model, sensor, plan, effects=plant.effects)
-    ident = identify(records_of(runs), nominal.params, nominal.valve_map, partial=True)
+    try:
+        ident = identify(records_of(runs), nominal.params, nominal.valve_map, partial=True)
+    except IdentificationError:
+        return None
     return replace(nominal, params=ident.params, valve_map=ident.valve_map)
 
 
@@ -199,9 +204,11 @@ def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] 
             if 'identified' in settings.estimators:
                 models[key]['identified'] = stage('identify', identified_model, model, plant,
                                                   sensor, nominal, settings.campaign)
-            models[key] = {name: models[key][name] for name in settings.estimators}
-            done[key] = {name: {} for name in settings.estimators}
-        pairs = [(key, name) for key, _, _ in batch for name in settings.estimators]
+            done[key] = {name: dict.fromkeys(('q_psi', 'q_tau', 'ss_error', 'settling'), nan)
+                         for name in settings.estimators}
+            models[key] = {name: models[key][name] for name in settings.estimators
+                           if models[key][name] is not None}
+        pairs = [(key, name) for key, _, _ in batch for name in models[key]]
         for locked, figure in ((False, 'q_psi'), (True, 'q_tau')):
             q = stage('estimate', estimation_q, [runs[key, locked] for key, _ in pairs],
                       [replace(models[key][name], locked=locked) for key, name in pairs])

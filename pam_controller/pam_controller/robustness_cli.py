@@ -110,8 +110,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--identified', action='store_true',
                         help='add the identified estimator: a simulated calibration campaign '
                              '(effects included) and partial identification per plant; slow '
-                             '(about 10 s per plant with --quick\'s shortened campaign, a '
-                             'minute with the full one)')
+                             '(about 25 s per plant with --quick\'s shortened campaign, over a '
+                             'minute with the full one; NaN where identify fails)')
     parser.add_argument('--seed', type=int, default=1,
                         help='validation profile, sensor noise and Monte Carlo seed '
                              '(default: %(default)s)')
@@ -149,7 +149,7 @@ def body(argv=None) -> int:
     base = load_scenario(args.base)
     values = defaults(pi_node.PARAMETERS)
     gains = gains_from(values, 'angle')
-    plan = (CampaignPlan(hold=5.0, pair_hold=1.5, free_duration=30.0, seed=args.seed)
+    plan = (CampaignPlan(hold=5.0, pair_hold=2.0, free_duration=30.0, seed=args.seed)
             if args.quick else CampaignPlan(seed=args.seed))
     estimators = ('nominal', 'oracle', 'identified') if args.identified else ('nominal', 'oracle')
     settings = Settings(base=base, rows=args.effects, magnitudes=args.magnitudes,
