@@ -21,7 +21,8 @@ def test_help_texts():
     out = _run('pam-emulator', '--help')
     assert out.returncode == 0
     for word in ('--link', '--locked', '--mismatch', '--garbage-every', '--disconnect-at',
-                 '--stuck-sensor', '--drop-every', '--protocol-version', '--status-file'):
+                 '--stuck-sensor', '--drop-every', '--protocol-version', '--status-file',
+                 '--supply-sensor', '--broken-sensor'):
         assert word in out.stdout
 
 
@@ -40,6 +41,23 @@ def test_emulator_rejects_a_bad_protocol_version():
     assert out.returncode == 2 and 'expected MAJOR.MINOR' in out.stderr, out.stderr
     out = _run('pam-emulator', '--protocol-version', '1.256')
     assert out.returncode == 2 and 'versions are bytes' in out.stderr, out.stderr
+
+
+def test_emulator_supply_sensor_needs_its_calibration(tmp_path):
+    """--supply-sensor with a calibration without pressure.supply (a 1.0 board's file): one
+    line naming the file; --broken-sensor supply without the transducer likewise."""
+    import yaml
+
+    from pam_driver.calibration import default_path
+    data = yaml.safe_load(default_path().read_text())
+    data['pressure'].pop('supply')
+    old = tmp_path / 'cal.yaml'
+    old.write_text(yaml.safe_dump(data))
+    out = _run('pam-emulator', '--supply-sensor', '--calibration', str(old))
+    assert out.returncode == 2 and 'no pressure.supply section' in out.stderr, out.stderr
+    assert str(old) in out.stderr
+    out = _run('pam-emulator', '--broken-sensor', 'supply')
+    assert out.returncode == 2 and 'needs --supply-sensor' in out.stderr, out.stderr
 
 
 def test_emulator_rejects_an_initial_command_out_of_range():
