@@ -1,5 +1,6 @@
 """Calibration runs for pam-identify: read from bags (or pam-simulate files) as CalibrationRecords,
-and the identified set written out (parameter YAML, kappa table, report) all or nothing.
+and the identified set written out (parameter YAML, kappa table, the estimator's extensions,
+report) all or nothing.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import tempfile
 from pathlib import Path
 
 from pam_model.identification.records import CalibrationRecord, RecordError
+from pam_model.model_extensions import load_extensions, save_extensions
 from pam_model.parameters import load_parameters, save_parameters
 from pam_model.simulate import SimulationResult
 from pam_model.valve_map import load_valve_map
@@ -19,6 +21,7 @@ from .bag_runs import COMMAND, is_bag, load_bag_run
 PARAMS_FILE = 'params.yaml'
 KAPPA_FILE = 'kappa.csv'
 REPORT_FILE = 'report.txt'
+EXTENSIONS_FILE = 'extensions.yaml'
 
 
 def load_record(path) -> CalibrationRecord:
@@ -49,7 +52,8 @@ def load_record(path) -> CalibrationRecord:
 
 
 def write_identification(ident, report: str, out_dir, name: str = 'identified') -> dict:
-    """Write params.yaml, kappa.csv and report.txt into out_dir, which must not exist.
+    """Write params.yaml, kappa.csv, extensions.yaml (an empty mapping when none was identified)
+    and report.txt into out_dir, which must not exist.
 
     The files are written into a temporary sibling, read back with the loaders the nodes use,
     and only then renamed to out_dir: a failure leaves nothing behind. Returns {kind: path}.
@@ -63,12 +67,16 @@ def write_identification(ident, report: str, out_dir, name: str = 'identified') 
     try:
         save_parameters(ident.params, staging / PARAMS_FILE, name=name)
         ident.valve_map.save(staging / KAPPA_FILE)
+        save_extensions(ident.extensions, staging / EXTENSIONS_FILE, name=name)
         (staging / REPORT_FILE).write_text(report + '\n')
         load_parameters(staging / PARAMS_FILE)        # what ukf_node will load
         load_valve_map(staging / KAPPA_FILE)
+        if load_extensions(staging / EXTENSIONS_FILE) != ident.extensions:
+            raise ValueError(f'{EXTENSIONS_FILE}: does not read back as written')
         os.rename(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return {kind: out_dir / f for kind, f in
-            (('params', PARAMS_FILE), ('kappa', KAPPA_FILE), ('report', REPORT_FILE))}
+            (('params', PARAMS_FILE), ('kappa', KAPPA_FILE), ('extensions', EXTENSIONS_FILE),
+             ('report', REPORT_FILE))}

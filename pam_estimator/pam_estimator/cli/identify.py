@@ -23,9 +23,13 @@ def parse_args(argv=None) -> argparse.Namespace:
                     'kappa(u) from static holds, the force coefficients from the torque meter '
                     '(locked joint at 2+ angles), the effective valve areas A1, A2 and k2 from '
                     'the pressure transients, mu_s and mu_p from free-joint runs, with scipy '
-                    'least squares. Prints each value with its uncertainty and the residuals, and '
-                    'writes OUTPUT/params.yaml, OUTPUT/kappa.csv and OUTPUT/report.txt, which '
-                    'ukf_node (model_parameters, valve_map) and pam-evaluate (--params, --kappa) '
+                    'least squares; and the estimator\'s extensions the runs reveal (sensor '
+                    'offsets from the vented holds, force hysteresis from the torque meter, the '
+                    'air lines\' dead volume from the transients; docs/identification.md). '
+                    'Prints each value with its uncertainty and the residuals, and '
+                    'writes OUTPUT/params.yaml, OUTPUT/kappa.csv, OUTPUT/extensions.yaml and '
+                    'OUTPUT/report.txt, which ukf_node (model_parameters, valve_map, '
+                    'model_extensions) and pam-evaluate (--params, --kappa, --extensions) '
                     'load. Runs: bags recorded while profile_player played profile:='
                     'calibration_locked (joint locked, one bag per lock angle) and '
                     'calibration_free, or made by pam-calibration-bags on the simulator.')
@@ -42,10 +46,14 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--partial', action='store_true',
                         help='when the runs cannot identify some parameters, keep their prior '
                              'values (listed in the report) instead of failing')
+    parser.add_argument('--no-extensions', dest='extensions', action='store_false',
+                        help='identify the paper\'s model only: no sensor offsets, hysteresis or '
+                             'dead volume (extensions.yaml is then an empty mapping)')
     parser.add_argument('--truth-mismatch', metavar='NAME|FILE',
                         help='simulated runs only: the plant was --prior with this mismatch '
                              'scenario (as pam-calibration-bags --mismatch made it); the report '
-                             'then shows the true values and the errors')
+                             'then shows the true values (and the scenario\'s effects) and the '
+                             'errors')
     parser.add_argument('--name', default='identified', help='name written into params.yaml')
     return parser.parse_args(argv)
 
@@ -67,20 +75,23 @@ def body(argv=None) -> int:
         records.append(record)
     try:
         ident = identify(records, prior, prior_map, partial=args.partial,
-                         log=lambda line: print(line, flush=True))
+                         log=lambda line: print(line, flush=True), extensions=args.extensions)
     except IdentificationError as exc:
         raise ValueError(f'{exc}\nnothing written') from exc
-    truth = load_scenario(args.truth_mismatch).apply(prior) if args.truth_mismatch else None
-    report = format_report(ident, prior, truth, prior_map if truth is not None else None)
+    scenario = load_scenario(args.truth_mismatch) if args.truth_mismatch else None
+    truth = scenario.apply(prior) if scenario is not None else None
+    report = format_report(ident, prior, truth, prior_map if truth is not None else None,
+                           scenario.effects if scenario is not None else None)
     files = write_identification(ident, report, args.output, args.name)
     print()
     print(report)
     print()
-    print(f'wrote {files["params"]}, {files["kappa"]}, {files["report"]}'
+    print(f'wrote {files["params"]}, {files["kappa"]}, {files["extensions"]}, {files["report"]}'
           + ('' if ident.complete else ' (PARTIAL: see "NOT identified" above)'))
     print(f'use: ros2 run pam_estimator ukf_node --ros-args -p model_parameters:={files["params"]}'
-          f' -p valve_map:={files["kappa"]}')
-    print(f'     pam-evaluate --params {files["params"]} --kappa {files["kappa"]} VALIDATION_BAG')
+          f' -p valve_map:={files["kappa"]} -p model_extensions:={files["extensions"]}')
+    print(f'     pam-evaluate --params {files["params"]} --kappa {files["kappa"]} '
+          f'--extensions {files["extensions"]} VALIDATION_BAG')
     return 0
 
 

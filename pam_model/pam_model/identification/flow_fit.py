@@ -30,19 +30,26 @@ from ..physics import (
 from .fit_result import Estimate, GroupFit, NotIdentifiable, check_identified, standard_errors
 
 MIN_TRAVEL = math.radians(5.0)    # rad, a free run needs this much motion to inform k2
+VOLUME_SCALE = 1.0e-5             # m^3, scale of the dead volume's unknown
+SIGNIFICANCE = 3.0                # a dead volume is kept when it exceeds this many sigma
+#: m^3, and this much (0.5 cm^3, a 4 cm line of 4 mm bore; 1.4 % of a muscle's volume at L0): the
+#: statistical sigma misses the fit's model bias (on the 'mild' plant, with no dead volume, the
+#: fit gave 0.07 cm^3 at 20 sigma)
+MIN_DEAD_VOLUME = 0.5e-6
 AREA_FIELDS = ('A1_1', 'A2_1', 'A1_2', 'A2_2')
 AREA_NAMES = ('pam1.A1', 'pam1.A2', 'pam2.A1', 'pam2.A2')
 
 
 @njit(cache=True)
-def pressure_trajectory(P0, alpha, l, l_dot, dt, p, A1, A2, out):
+def pressure_trajectory_with_volume(P0, alpha, l, l_dot, dt, p, A1, A2, V_d, out):
     """out[k] (Pa): one muscle's pressure from P0 (Pa) under openings alpha (N,), length l (N,) m
-    and its rate l_dot (N,) m/s held over each step dt (N-1,) s; valve areas A1, A2 (m^2)."""
+    and its rate l_dot (N,) m/s held over each step dt (N-1,) s; valve areas A1, A2 (m^2); a dead
+    volume V_d (m^3) in series (eq. (4) with V + V_d, V_dot of the muscle alone)."""
     g = gas_constants(p)
     P = P0
     out[0] = P
     for k in range(dt.shape[0]):
-        V = muscle_volume(l[k], p)
+        V = muscle_volume(l[k], p) + V_d
         V_dot = volume_rate(l[k], l_dot[k], p)
         h = dt[k]
         a = alpha[k]
@@ -56,6 +63,12 @@ def pressure_trajectory(P0, alpha, l, l_dot, dt, p, A1, A2, out):
         P = clip(P + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), P_MIN, P_MAX)
         out[k + 1] = P
     return out
+
+
+@njit(cache=True)
+def pressure_trajectory(P0, alpha, l, l_dot, dt, p, A1, A2, out):
+    """pressure_trajectory_with_volume without a dead volume (the paper's eq. (4))."""
+    return pressure_trajectory_with_volume(P0, alpha, l, l_dot, dt, p, A1, A2, 0.0, out)
 
 
 def muscle_inputs(rec, valve_map, p):
@@ -76,21 +89,24 @@ class PressureModel:
         self.inputs = [muscle_inputs(r, valve_map, prior) for r in records]
         self.measured = np.concatenate([r.P[:, i] for r in records for i in range(2)])
 
-    def simulate(self, areas, k2) -> np.ndarray:
+    def simulate(self, areas, k2, dead_volume: float = 0.0) -> np.ndarray:
         p = self.prior.replace(k2=float(k2)).as_record_array()[0]
         parts = []
         for rec, inputs in zip(self.records, self.inputs, strict=True):
             dt = rec.dt
             for i, (alpha, l, l_dot) in enumerate(inputs):
                 out = np.empty(len(rec.t))
-                pressure_trajectory(float(rec.P[0, i]), alpha, l, l_dot, dt, p,
-                                    float(areas[2 * i]), float(areas[2 * i + 1]), out)
+                pressure_trajectory_with_volume(float(rec.P[0, i]), alpha, l, l_dot, dt, p,
+                                                float(areas[2 * i]), float(areas[2 * i + 1]),
+                                                float(dead_volume), out)
                 parts.append(out)
         return np.concatenate(parts)
 
 
-def fit_flow(records, prior, valve_map) -> tuple[GroupFit, dict, list]:
-    """The fit, the Parameters changes and what could not be fitted (NotIdentifiable list)."""
+def fit_flow(records, prior, valve_map, dead_volume: bool = False):
+    """The fit, the Parameters changes and what could not be fitted (NotIdentifiable list);
+    dead_volume: also fit V_d (eq. (4) with V + V_d), returned fourth (m^3, 0 when not
+    significant: V_d <= SIGNIFICANCE sigma)."""
     if not records:
         raise NotIdentifiable('the valve areas need calibration runs with pressure transients',
                               (*AREA_NAMES, 'k2'))
@@ -105,27 +121,51 @@ def fit_flow(records, prior, valve_map) -> tuple[GroupFit, dict, list]:
     model = PressureModel(records, valve_map, prior)
     areas0 = np.array([getattr(prior, f) for f in AREA_FIELDS])
 
-    def unpack(z):
+    n_k2 = 5 if fit_k2 else 4
+
+    def unpack(z, with_volume=dead_volume):
         areas = areas0 * np.exp(z[:4])
         k2 = prior.k2 * (1.0 + z[4]) if fit_k2 else prior.k2
-        return areas, k2
+        return areas, k2, (VOLUME_SCALE * z[n_k2] if with_volume else 0.0)
 
-    def residual(z):
-        return (model.simulate(*unpack(z)) - model.measured) / 1e3     # kPa
+    def solve(with_volume):
+        def residual(z):
+            return (model.simulate(*unpack(z, with_volume)) - model.measured) / 1e3     # kPa
 
-    z0 = np.zeros(5 if fit_k2 else 4)
-    sol = least_squares(residual, z0, method='trf', x_scale=0.1, diff_step=1e-4)
-    areas, k2 = unpack(sol.x)
-    z_std = standard_errors(sol.jac, sol.fun, correlated=True)
+        z0 = np.zeros(n_k2 + int(with_volume))
+        sol = least_squares(residual, z0, method='trf', x_scale=0.1, diff_step=1e-4)
+        return sol, standard_errors(sol.jac, sol.fun, correlated=True)
+
+    sol, z_std = solve(dead_volume)
+    volume_estimate, V_d = None, 0.0
+    if dead_volume:
+        value, std = VOLUME_SCALE * sol.x[n_k2], VOLUME_SCALE * z_std[n_k2]
+        kept = value > max(SIGNIFICANCE * std, MIN_DEAD_VOLUME)
+        volume_estimate = Estimate('dead_volume', float(value), float(std), 0.0, 'm^3',
+                                   '' if kept else 'not significant: kept 0')
+        if kept:
+            V_d = float(value)
+        else:
+            sol, z_std = solve(False)
+    areas, k2, _ = unpack(sol.x, V_d > 0.0)
     estimates = [Estimate(n, float(a), float(a * s), float(a0), 'm^2')
                  for n, a, s, a0 in zip(AREA_NAMES, areas, z_std[:4], areas0, strict=True)]
     if fit_k2:
         estimates.append(Estimate('k2', float(k2), float(prior.k2 * z_std[4]), prior.k2, '-'))
     check_identified(estimates, 'valve flow')
+    if volume_estimate is not None:
+        estimates.append(volume_estimate)
     changes = dict(zip(AREA_FIELDS, map(float, areas), strict=True))
     if fit_k2:
         changes['k2'] = float(k2)
     notes = (f'k1 held at {prior.k1:g}: A1, A2 are effective areas for it (only k1 A_0 is '
              'identifiable)',)
-    return (GroupFit('flow', tuple(estimates), float(np.sqrt(np.mean(sol.fun ** 2))) * 1e3, 'Pa',
-                     len(model.measured), notes), changes, skipped)
+    if dead_volume:
+        notes += (f'dead volume V_d per muscle in eq. (4) fitted with the areas (it separates '
+                  f'from them as the lock angles change V); kept above {SIGNIFICANCE:g} sigma and '
+                  f'{MIN_DEAD_VOLUME * 1e6:g} cm^3',)
+    group = GroupFit('flow', tuple(estimates), float(np.sqrt(np.mean(sol.fun ** 2))) * 1e3, 'Pa',
+                     len(model.measured), notes)
+    if dead_volume:
+        return group, changes, skipped, V_d
+    return group, changes, skipped

@@ -64,8 +64,12 @@ def usable_records(records):
     return used
 
 
-def fit_forces(records, prior) -> tuple[GroupFit, dict]:
-    """The force coefficients; returns the fit and the Parameters changes (field: value)."""
+def fit_forces(records, prior, extra_column=None):
+    """The force coefficients; returns the fit and the Parameters changes (field: value).
+
+    extra_column (N,) N m, optional: one more regressor over the usable records' samples in order
+    (hysteresis_fit: the torque of a 1 N hysteresis band), fitted jointly; its (coefficient, std)
+    is then returned third."""
     used = usable_records(records)
     psi = np.concatenate([r.psi for r in used])
     P = np.concatenate([r.P for r in used])
@@ -74,10 +78,18 @@ def fit_forces(records, prior) -> tuple[GroupFit, dict]:
     w0_prior, a_prior = intercept_combinations(prior)
     theta0 = np.array([prior.p_v1_1, prior.p_v2_1, prior.p_v1_2, prior.p_v2_2, w0_prior, a_prior])
     scale = np.maximum(np.abs(theta0), TYPICAL_SCALE)
+    if extra_column is not None:
+        A = np.column_stack([A, extra_column])
+        theta0 = np.append(theta0, 0.0)
+        scale = np.append(scale, 1.0)
     As = A * scale
     sol = least_squares(lambda z: As @ z - tau, theta0 / scale, jac=lambda z: As, method='lm')
     theta = sol.x * scale
     std = standard_errors(As, sol.fun) * scale
+    extra = None
+    if extra_column is not None:
+        extra = (float(theta[-1]), float(std[-1]))
+        theta, std, theta0 = theta[:-1], std[:-1], theta0[:-1]
     names = ('pam1.p_v1', 'pam1.p_v2', 'pam2.p_v1', 'pam2.p_v2', 'w1(L0) - w2(L0)',
              'pam1.p_w1 + pam2.p_w1')
     units = ('m', 'm^2', 'm', 'm^2', 'N', 'N/m')
@@ -95,5 +107,7 @@ def fit_forces(records, prior) -> tuple[GroupFit, dict]:
                                     ('pam2.p_w1', 'p_w1_2', 'N/m'), ('pam2.p_w2', 'p_w2_2', 'N')))
     angles = sorted({round(math.degrees(r.lock_angle), 1) for r in used})
     notes = (f'{len(used)} locked runs, lock angles {", ".join(f"{a:+g}" for a in angles)} deg',)
-    return (GroupFit('forces', fitted + derived, float(np.sqrt(np.mean(sol.fun ** 2))), 'N m',
-                     len(tau), notes), {k: float(v) for k, v in changes.items()})
+    group = GroupFit('forces', fitted + derived, float(np.sqrt(np.mean(sol.fun ** 2))), 'N m',
+                     len(tau), notes)
+    changes = {k: float(v) for k, v in changes.items()}
+    return (group, changes) if extra_column is None else (group, changes, extra)

@@ -26,8 +26,9 @@ from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
 from ..model_choices import ForceModel, FrictionLaw
-from ..physics import friction_torque, joint_torque, muscle_forces
+from ..physics import friction_from_forces, joint_torque, muscle_forces
 from .fit_result import Estimate, GroupFit, NotIdentifiable, check_identified, standard_errors
+from .hysteresis_fit import slip_step
 
 MIN_TRAVEL = math.radians(5.0)          # rad, a free run must move this much
 PRESSURE_FILTER_HZ = 5.0                # Hz, low-pass of the measured pressures (zero phase)
@@ -39,33 +40,54 @@ FORCE = int(ForceModel.PROPOSED)        # the force model of the identified coef
 
 
 @njit(cache=True)
-def joint_acceleration(psi, P1, P2, T_f, p):
+def joint_acceleration(psi, P1, P2, T_f, p, F_h1=0.0, F_h2=0.0):
     """psi_ddot (rad/s^2) of eq. (9) at angle psi (rad), pressures P1, P2 (Pa), friction T_f
-    (N m)."""
+    (N m), hysteresis forces F_h1, F_h2 (N) added to eq. (6)."""
     F1, F2 = muscle_forces(psi, P1, P2, p, FORCE)
-    return (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
+    return (joint_torque(psi, F1 + F_h1, F2 + F_h2, p) - T_f - p.k_s * psi) / p.J
 
 
 @njit(cache=True)
-def joint_trajectory(psi0, psi_dot0, P1, P2, dt, p, out):
+def joint_trajectory_with_hysteresis(psi0, psi_dot0, P1, P2, dt, p, band, elements, travel, out):
     """out[k] (rad): the joint angle from (psi0 rad, psi_dot0 rad/s) driven by pressures P1, P2
-    (N,) Pa held over each step dt (N-1,) s; friction (proposed law) once per step, RK4."""
+    (N,) Pa held over each step dt (N-1,) s; friction (proposed law) once per step, RK4. With
+    band B > 0 (N at 500 kPa) each muscle's force carries the Maxwell slip of pam_model.effects
+    (elements n, travel Delta N), driven by its nominal force at each sample and held over the
+    step, in the torque and in the friction's F1 + F2 (as the plant of effects_physics)."""
     psi, w = psi0, psi_dot0
     out[0] = psi
+    hysteresis = band > 0.0
+    anchors = np.empty((2, elements))
     for k in range(dt.shape[0]):
         h = dt[k]
-        T_f, _ = friction_torque(psi, w, P1[k], P2[k], h, p, FRICTION, FORCE)
-        a1 = joint_acceleration(psi, P1[k], P2[k], T_f, p)
-        a2 = joint_acceleration(psi + 0.5 * h * w, P1[k], P2[k], T_f, p)
+        F1, F2 = muscle_forces(psi, P1[k], P2[k], p, FORCE)
+        if hysteresis:
+            if k == 0:
+                anchors[0, :] = F1
+                anchors[1, :] = F2
+            F_h1 = band * slip_step(anchors[0], F1, P1[k], travel, p.P_out)
+            F_h2 = band * slip_step(anchors[1], F2, P2[k], travel, p.P_out)
+        else:
+            F_h1, F_h2 = 0.0, 0.0
+        T_f, _ = friction_from_forces(psi, w, P1[k], P2[k], F1 + F_h1, F2 + F_h2, h, p,
+                                      FRICTION)
+        a1 = joint_acceleration(psi, P1[k], P2[k], T_f, p, F_h1, F_h2)
+        a2 = joint_acceleration(psi + 0.5 * h * w, P1[k], P2[k], T_f, p, F_h1, F_h2)
         w2 = w + 0.5 * h * a1
-        a3 = joint_acceleration(psi + 0.5 * h * w2, P1[k], P2[k], T_f, p)
+        a3 = joint_acceleration(psi + 0.5 * h * w2, P1[k], P2[k], T_f, p, F_h1, F_h2)
         w3 = w + 0.5 * h * a2
         w4 = w + h * a3
-        a4 = joint_acceleration(psi + h * w3, P1[k], P2[k], T_f, p)
+        a4 = joint_acceleration(psi + h * w3, P1[k], P2[k], T_f, p, F_h1, F_h2)
         psi = psi + h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
         w = w + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
         out[k + 1] = psi
     return out
+
+
+@njit(cache=True)
+def joint_trajectory(psi0, psi_dot0, P1, P2, dt, p, out):
+    """joint_trajectory_with_hysteresis without hysteresis (the paper's eq. (6)-(10))."""
+    return joint_trajectory_with_hysteresis(psi0, psi_dot0, P1, P2, dt, p, 0.0, 1, 1.0, out)
 
 
 def filtered_pressures(rec) -> np.ndarray:
@@ -75,18 +97,21 @@ def filtered_pressures(rec) -> np.ndarray:
     return sosfiltfilt(sos, rec.P, axis=0)
 
 
-def fit_friction(records, params) -> tuple[GroupFit, dict, list]:
+def fit_friction(records, params, hysteresis=(0.0, 1, 1.0)) -> tuple[GroupFit, dict, list]:
     """mu_s, mu_p from the free runs, with `params` holding the identified forces.
 
     Returns the fit, the Parameters changes and what was not identified: when the runs pin mu_s
     but not mu_p (a small part of T_c inside the envelope), mu_s is fitted again with mu_p held
-    at its prior value and mu_p is reported as not identified.
+    at its prior value and mu_p is reported as not identified. hysteresis: (B N at 500 kPa,
+    elements n, travel Delta N) of the identified force hysteresis in the model joint (B = 0:
+    none), so that the friction does not absorb the loop.
     """
     used = [r for r in records if not r.locked and r.travel >= MIN_TRAVEL]
     if not used:
         raise NotIdentifiable(
             f'mu_s and mu_p need a free-joint run with an encoder in which the joint moves '
             f'(>= {math.degrees(MIN_TRAVEL):.0f} deg of travel)', PARAMETERS)
+    band, elements, travel = float(hysteresis[0]), int(hysteresis[1]), float(hysteresis[2])
     inputs = [(r, filtered_pressures(r)) for r in used]
     measured = np.concatenate([r.psi for r in used])
     prior = np.array([params.mu_s, params.mu_p])
@@ -101,8 +126,9 @@ def fit_friction(records, params) -> tuple[GroupFit, dict, list]:
             parts = []
             for rec, P in inputs:
                 out = np.empty(len(rec.t))
-                joint_trajectory(float(rec.psi[0]), float(rec.psi_dot[0]), P[:, 0], P[:, 1],
-                                 rec.dt, p, out)
+                joint_trajectory_with_hysteresis(float(rec.psi[0]), float(rec.psi_dot[0]),
+                                                 P[:, 0], P[:, 1], rec.dt, p, band, elements,
+                                                 travel, out)
                 parts.append(out)
             return np.degrees(np.concatenate(parts) - measured)
 
@@ -125,6 +151,8 @@ def fit_friction(records, params) -> tuple[GroupFit, dict, list]:
         skipped.append(gap)
         sol, estimates = solve([0])
         check_identified(estimates, 'friction')
-    notes = (f'{len(used)} free runs, pressures low-passed at {PRESSURE_FILTER_HZ:g} Hz',)
+    notes = (f'{len(used)} free runs, pressures low-passed at {PRESSURE_FILTER_HZ:g} Hz'
+             + (f'; with the identified force hysteresis (B {band:.3g} N, Delta {travel:.3g} N)'
+                if band > 0.0 else ''),)
     return (GroupFit('friction', estimates, float(np.sqrt(np.mean(sol.fun ** 2))), 'deg',
                      len(measured), notes), {e.name: e.value for e in estimates}, skipped)
