@@ -78,6 +78,8 @@ SUMMARY = (
     '(when fitted)',
     '  publishes   joint_states    sensor_msgs/JointState           the joint for the standard '
     'tools (encoder)',
+    '  publishes   supply_pressure sensor_msgs/FluidPressure        P_tank (Pa abs), when the '
+    'board has the transducer',
     '  subscribes  valve_command   pam_interfaces/ValveCommand      u1, u2 (V)',
     '  publishes   ~/applied_command pam_interfaces/ValveCommand    what the valves get',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',

@@ -16,7 +16,7 @@ def test_help_texts():
     out = _run('driver_node', '--help')
     assert out.returncode == 0
     for word in ('port', 'calibration_file', 'watchdog_timeout', 'safe_output', '~/arm',
-                 'reconnect_backoff', 'inject_internal_error'):
+                 'reconnect_backoff', 'inject_internal_error', 'supply_pressure'):
         assert word in out.stdout
     out = _run('pam-emulator', '--help')
     assert out.returncode == 0

@@ -16,7 +16,7 @@ CONTRACT = {
     'initial_state': '[0.0, 0.0, 450000.0, 450000.0]', 'initial_command': '[5.5, 5.5]',
     'pressure_noise_std': 'Pa', 'quantisation_bits': '-1', 'seed': '0',
     'timing': "'realtime'", 'rate': '1000.0', 'publish_clock': 'false',
-    'lockstep_timeout': '0.5', 'frame_id': "'pam_joint'",
+    'lockstep_timeout': '0.5', 'frame_id': "'pam_joint'", 'publish_supply_pressure': 'false',
 }
 
 
