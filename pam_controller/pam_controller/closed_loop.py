@@ -17,9 +17,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, UkfTuning, ukf_step
+from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, PamUkf, UkfTuning, ukf_step
 from pam_model.effects import Effects, EffectsPlant
 from pam_model.model import PamModel
+from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.physics import joint_torque, muscle_forces, step_array
 from pam_model.sensor import PressureSensor, adc_reading
 
@@ -142,13 +143,15 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
                                       mode: str = 'angle', anti_windup: str = 'conditional',
                                       tracking_time: float = 0.1,
                                       limits: PiGains = PiGains(0.0, 0.0),
-                                      x0=(0.0, 0.0, 4.5e5, 4.5e5),
-                                      seed: int = 0) -> ClosedLoopRun:
+                                      x0=(0.0, 0.0, 4.5e5, 4.5e5), seed: int = 0,
+                                      extensions: Effects = NO_EXTENSIONS) -> ClosedLoopRun:
     """One closed-loop run of the gains (kp, ki) on a plant with unmodelled effects (any, or
     none): simulate_closed_loop's loop, the same sensor noise draws and the same control_step,
     with the plant stepped by pam_model.effects.EffectsPlant one sample at a time (the sensor
     reads its sensed pressures, the truth includes its hysteresis forces). With no effect on it
-    gives simulate_closed_loop's run sample for sample."""
+    gives simulate_closed_loop's run sample for sample. extensions: the estimator model's
+    (pam_model.model_extensions); when any is on, the estimate comes from a PamUkf carrying them
+    (its step in Python around two kernels) and the PI from the same pi_step."""
     reference, noise = _checked_inputs(plant, mode, reference, sensor, seed)
     kp, ki = (float(g) for g in gains)
     h = plant.h
@@ -163,6 +166,8 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
     torque_mode = mode == 'torque'
     aw = ANTI_WINDUP.index(anti_windup)
     plant_steps = EffectsPlant(plant, effects, x, u)
+    extended = PamUkf(model=est, tuning=tuning, x0=tuple(x), extensions=extensions) \
+        if extensions.active else None
     n = len(reference)
     truth, estimate, commands = np.empty(n), np.empty(n), np.empty((n, 2))
     i_term = 0.0
@@ -172,11 +177,18 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
             y[j] = adc_reading(sensed[j] + noise[k, j], sensor.resolution, sensor.range_min,
                                sensor.range_max)
         truth[k] = plant_steps.outputs(x)[2] if torque_mode else x[0]
-        estimate[k], i_term = control_step(
-            x_hat, P, u, y, Q, R, h, est.params_array, est.valve_map.u, est.valve_map.alpha,
-            est.friction_code, est.force_code, est.locked, x0[0], info, torque_mode,
-            reference[k], i_term, kp, ki, limits.beta, limits.u_min, limits.u_max, aw,
-            tracking_time)
+        if extended is None:
+            estimate[k], i_term = control_step(
+                x_hat, P, u, y, Q, R, h, est.params_array, est.valve_map.u, est.valve_map.alpha,
+                est.friction_code, est.force_code, est.locked, x0[0], info, torque_mode,
+                reference[k], i_term, kp, ki, limits.beta, limits.u_min, limits.u_max, aw,
+                tracking_time)
+        else:
+            out = extended.step(y, u)
+            estimate[k] = out.torque if torque_mode else out.x[0]
+            u[0], u[1], _, i_term, _ = pi_step(reference[k] - estimate[k], h, i_term, kp, ki,
+                                               limits.beta, limits.u_min, limits.u_max, aw,
+                                               tracking_time, 2.0 * h)
         commands[k] = u
         x, _, _ = plant_steps.step(x, u, k * h)
     return ClosedLoopRun(np.arange(n) * h, reference, truth, estimate, commands, (kp, ki))

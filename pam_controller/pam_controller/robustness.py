@@ -7,7 +7,8 @@ parameter draw) it runs
   torque (Q_tau), MODEL.md section 6, the estimator starting from the first measured state as
   pam-evaluate does (pam_estimator.evaluation.start_state);
 * the sensor-less closed loop (pam_controller.closed_loop) over the demo's angle steps
-  (reference_node's defaults: steps of 8 s within +-20 deg, seed 0) with pi_node's default gains:
+  (reference_node's defaults: steps of 8 s within +-20 deg, seed 0)
+  with pi_node's default gains:
   the worst steady-state error (% of the 40 deg range) and the worst settling time (s) of
   step_metrics.
 
@@ -15,6 +16,9 @@ The estimators (columns):
 * 'nominal': the UKF with the shipped Table II set (what a user has before identification);
 * 'oracle': the UKF with the plant's TRUE parameters and no model of the effects: what remains
   when identification is perfect;
+* 'oracle+ext': the same with the plant's true estimator-side effects as model extensions
+  (pam_model.model_extensions: valve lag, dead volume, hysteresis, sensor offset and gain; not the
+  supply, temperature or sensor filter): what remains when those are modelled and known;
 * 'identified' (optional, costly): the UKF with what pam_model.identification.identify (partial)
   makes of a simulated calibration campaign on that plant, effects included.
 
@@ -29,14 +33,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from math import nan
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from pam_estimator.evaluation import run_ukf
 from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, ukf_step
+from pam_model.effects import Effects
 from pam_model.metrics import metrics
 from pam_model.mismatch import MismatchScenario
 from pam_model.model import PamModel
+from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import joint_torque, muscle_forces
 from pam_model.profiles import step_reference_profile, validation_profile
 from pam_model.simulate import simulate
@@ -46,9 +54,7 @@ from .robustness_plants import Plant, sweep_plants
 from .step_metrics import ANGLE_SPAN
 
 X0 = (0.0, 0.0, 4.5e5, 4.5e5)       # rad, rad/s, Pa, Pa: every run's initial state
-ESTIMATORS = ('nominal', 'oracle', 'identified')
 #: The demo's reference (reference_node's defaults): angle steps held 8 s, seed 0.
-REFERENCE_HOLD = 8.0                 # s
 REFERENCE_SEED = 0
 CHUNK = 8                            # distinct plants whose runs are held (and batched) at once
 
@@ -62,10 +68,11 @@ class Settings:
     base: MismatchScenario
     rows: tuple
     magnitudes: tuple
-    monte_carlo: int = 8
+    monte_carlo: int = 6
     seed: int = 1
     validation_duration: float = 130.0
     closed_loop_duration: float = 64.0
+    reference_hold: float = 8.0      # s, the demo's (reference_node's hold)
     estimators: tuple = ('nominal', 'oracle')
     campaign: object = None          # pam_model.identification.campaign.CampaignPlan
     gains: tuple = (40.0, 50.0)      # kp V/rad, ki V/(rad s)
@@ -107,30 +114,50 @@ def ukf_runs_kernel(p_measured, U, x0s, est_arrays, h, kappa_u, kappa_alpha, fri
     return psi, tau
 
 
-def estimation_q(runs, models, tuning=DEFAULT_TUNING) -> np.ndarray:
-    """Whole-run Q (%) of the UKF with models[i] over runs[i]: SimulationResults of one input
-    profile and one joint mode (angle Q when free, torque Q when locked). The runs whose
-    models share a valve map go through ukf_runs_kernel in one call."""
+class Estimator(NamedTuple):
+    """A UKF's model and its model extensions (pam_model.model_extensions)."""
+
+    model: PamModel
+    extensions: Effects = NO_EXTENSIONS
+
+
+def estimator_extensions(effects: Effects) -> Effects:
+    """The part of a plant's effects an estimator's model may carry (ESTIMATOR_FIELDS)."""
+    return Effects(**{name: getattr(effects, name) for name in ESTIMATOR_FIELDS})
+
+
+def q_percent(run, psi, tau) -> float:
+    """Whole-run Q (%) of an estimate: the angle's (deg) on a free run, the torque's locked."""
+    measured, estimated = ((run.torque, tau) if run.locked else
+                           (np.degrees(run.x[:, 0]), np.degrees(psi)))
+    return 100.0 * metrics(measured, estimated).Q
+
+
+def estimation_q(runs, estimators, tuning=DEFAULT_TUNING) -> np.ndarray:
+    """Whole-run Q (%) of the UKF estimators[i] over runs[i]: SimulationResults of one input
+    profile and one joint mode (angle Q when free, torque Q when locked). The estimators without
+    extensions that share a valve map go through ukf_runs_kernel in one call; those with
+    extensions run pam_estimator.evaluation.run_ukf (PamUkf, sample by sample)."""
     q = np.empty(len(runs))
     groups: dict = {}
-    for i, model in enumerate(models):
-        groups.setdefault(id(model.valve_map), []).append(i)
+    for i, (model, extensions) in enumerate(estimators):
+        if extensions.active:
+            est = run_ukf(runs[i], model, tuning, extensions=extensions)
+            q[i] = q_percent(runs[i], est.x[:, 0], est.torque)
+        else:
+            groups.setdefault(id(model.valve_map), []).append(i)
     for index in groups.values():
-        est = models[index[0]]
-        locked = runs[index[0]].locked
+        est = estimators[index[0]].model
         p_meas = np.ascontiguousarray([runs[i].p_measured for i in index])
         x0s = np.array([[runs[i].x[0, 0], runs[i].x[0, 1], *runs[i].p_measured[0]]
                         for i in index])
-        arrays = np.concatenate([models[i].params_array for i in index])
+        arrays = np.concatenate([estimators[i].model.params_array for i in index])
         psi, tau = ukf_runs_kernel(p_meas, np.ascontiguousarray(runs[index[0]].u), x0s, arrays,
                                    est.h, est.valve_map.u, est.valve_map.alpha,
-                                   est.friction_code, est.force_code, locked,
+                                   est.friction_code, est.force_code, runs[index[0]].locked,
                                    np.diag(tuning.Q), np.diag(tuning.R), np.diag(tuning.P0))
         for row, i in enumerate(index):
-            run = runs[i]
-            measured, estimated = ((run.torque, tau[row]) if locked else
-                                   (np.degrees(run.x[:, 0]), np.degrees(psi[row])))
-            q[i] = 100.0 * metrics(measured, estimated).Q
+            q[i] = q_percent(runs[i], psi[row], tau[row])
     return q
 
 
@@ -144,21 +171,35 @@ def identified_model(plant_model: PamModel, plant: Plant, sensor, nominal: PamMo
         ident = identify(records_of(runs), nominal.params, nominal.valve_map, partial=True)
     except IdentificationError:
         return None
-    return replace(nominal, params=ident.params, valve_map=ident.valve_map)
+    return Estimator(replace(nominal, params=ident.params, valve_map=ident.valve_map))
 
 
-def closed_loop_figures(plant_model: PamModel, plant: Plant, estimator: PamModel, reference,
+def closed_loop_figures(plant_model: PamModel, plant: Plant, estimator: Estimator, reference,
                         settings: Settings, sensor) -> dict:
     """Worst steady-state error (% of the 40 deg range) and settling (s) of the angle steps."""
     args = dict(sensor=sensor, mode='angle', anti_windup=settings.anti_windup,
                 tracking_time=settings.tracking_time, x0=X0, seed=settings.seed)
-    if plant.effects.active or estimator.valve_map is not plant_model.valve_map:
-        run = simulate_closed_loop_with_effects(plant_model, plant.effects, estimator, reference,
-                                                settings.gains, **args)
+    model, extensions = estimator
+    if plant.effects.active or extensions.active or model.valve_map is not plant_model.valve_map:
+        run = simulate_closed_loop_with_effects(plant_model, plant.effects, model, reference,
+                                                settings.gains, extensions=extensions, **args)
     else:
-        run, = simulate_closed_loop(plant_model, estimator, reference, [settings.gains], **args)
+        run, = simulate_closed_loop(plant_model, model, reference, [settings.gains], **args)
     report = run.report(ANGLE_SPAN, 2.0)
     return {'ss_error': report.worst_error, 'settling': report.worst_settling}
+
+
+def same_estimators(estimators: dict) -> dict:
+    """{name: an earlier name} for the estimators equal to an earlier one (the same model object
+    and extensions: 'oracle+ext' on a plant without estimator-side effects is 'oracle'); their
+    figures are copied, not computed again."""
+    first: dict = {}
+    copies = {}
+    for name, (model, extensions) in estimators.items():
+        original = first.setdefault((id(model), extensions), name)
+        if original != name:
+            copies[name] = original
+    return copies
 
 
 def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] = print,
@@ -170,7 +211,7 @@ def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] 
     sensor = settings.base.sensor
     profile = validation_profile(settings.seed, settings.validation_duration, nominal.h)
     reference = step_reference_profile('angle', REFERENCE_SEED, settings.closed_loop_duration,
-                                       REFERENCE_HOLD, nominal.h).value
+                                       settings.reference_hold, nominal.h).value
     plants = sweep_plants(settings.rows, settings.magnitudes, settings.base, nominal.params,
                           settings.monte_carlo, settings.seed)
     unique: dict = {}
@@ -198,9 +239,10 @@ def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] 
                  for key in keys[start:start + chunk]]
         runs = {(key, locked): stage('simulate', validation_run, plant, model, locked)
                 for key, plant, model in batch for locked in (False, True)}
-        models = {}
+        models, copies = {}, {}
         for key, plant, model in batch:
-            models[key] = {'nominal': nominal, 'oracle': model}
+            models[key] = {'nominal': Estimator(nominal), 'oracle': Estimator(model),
+                           'oracle+ext': Estimator(model, estimator_extensions(plant.effects))}
             if 'identified' in settings.estimators:
                 models[key]['identified'] = stage('identify', identified_model, model, plant,
                                                   sensor, nominal, settings.campaign)
@@ -208,17 +250,23 @@ def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] 
                          for name in settings.estimators}
             models[key] = {name: models[key][name] for name in settings.estimators
                            if models[key][name] is not None}
-        pairs = [(key, name) for key, _, _ in batch for name in models[key]]
+            copies[key] = same_estimators(models[key])
+        pairs = [(key, name) for key, _, _ in batch for name in models[key]
+                 if name not in copies[key]]
         for locked, figure in ((False, 'q_psi'), (True, 'q_tau')):
             q = stage('estimate', estimation_q, [runs[key, locked] for key, _ in pairs],
-                      [replace(models[key][name], locked=locked) for key, name in pairs])
+                      [Estimator(replace(models[key][name].model, locked=locked),
+                                 models[key][name].extensions) for key, name in pairs])
             for (key, name), value in zip(pairs, q, strict=True):
                 done[key][name][figure] = float(value)
         del runs
         for key, plant, model in batch:
             for name, estimator in models[key].items():
-                done[key][name].update(stage('closed_loop', closed_loop_figures, model, plant,
-                                             estimator, reference, settings, sensor))
+                if name not in copies[key]:
+                    done[key][name].update(stage('closed_loop', closed_loop_figures, model,
+                                                 plant, estimator, reference, settings, sensor))
+            for name, original in copies[key].items():
+                done[key][name] = dict(done[key][original])
             log(f'  [{keys.index(key) + 1}/{len(keys)}] {plant.row} x{plant.magnitude:g}'
                 + (f' draw {plant.draw}' if plant.row == 'parameters' else '') + ': '
                 + '; '.join(f'{name} Q_psi {f["q_psi"]:.2f} % Q_tau {f["q_tau"]:.2f} % ss '

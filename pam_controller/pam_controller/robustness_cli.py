@@ -18,10 +18,13 @@ from pam_model.cli.common import run_cli
 
 from .robustness_plants import PARAMETERS, ROWS
 
-QUICK = {'magnitudes': (0.0, 1.0, 2.0), 'monte_carlo': 2, 'duration': 16.0,
-         'closed_loop': 16.0}
-DEFAULTS = {'magnitudes': (0.0, 0.5, 1.0, 2.0), 'monte_carlo': 8, 'duration': 130.0,
-            'closed_loop': 64.0}
+ESTIMATORS = ('nominal', 'oracle', 'oracle+ext', 'identified')
+DEFAULT_ESTIMATORS = ESTIMATORS[:3]
+
+QUICK = {'magnitudes': (0.0, 1.0, 2.0), 'monte_carlo': 2, 'duration': 12.0,
+         'closed_loop': 16.0, 'hold': 8.0}
+DEFAULTS = {'magnitudes': (0.0, 0.5, 1.0, 2.0), 'monte_carlo': 6, 'duration': 130.0,
+            'closed_loop': 64.0, 'hold': 8.0}
 EXAMPLES = '''examples:
   pam-robustness --quick                          every effect at 0, 1, 2 x, short runs (~1 min)
   pam-robustness --json out/robustness.json --plots out/robustness   the full benchmark (~12 min)
@@ -34,8 +37,11 @@ EXAMPLES = '''examples:
 rows: {rows}
   a row scales its effect to magnitude x its value in the 'realistic' scenario; 'all' scales
   every effect at once; 'parameters' draws --monte-carlo plants around the base plant.
-columns: nominal = the UKF with the shipped parameters; oracle = the UKF with the plant's TRUE
-  parameters and no model of the effects (perfect identification); identified (--identified).
+columns (--estimators): nominal = the UKF with the shipped parameters; oracle = the UKF with
+  the plant's TRUE parameters and no model of the effects (perfect identification); oracle+ext =
+  the oracle with the plant's true valve lag, dead volume, hysteresis and sensor offset/gain as
+  model extensions (docs/model_extensions.md); identified (--identified): pam-identify --partial
+  on a simulated calibration campaign of each plant.
 '''
 
 
@@ -63,6 +69,15 @@ def row_list(text: str) -> tuple:
     if unknown or not names:
         raise argparse.ArgumentTypeError(f'unknown effect {unknown[0] if unknown else text!r} '
                                          f'(known: {", ".join(ROWS)})')
+    return names
+
+
+def estimator_list(text: str) -> tuple:
+    names = tuple(dict.fromkeys(v.strip() for v in text.split(',') if v.strip()))
+    unknown = [n for n in names if n not in ESTIMATORS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f'unknown estimator {unknown[0] if unknown else text!r} '
+                                         f'(known: {", ".join(ESTIMATORS)})')
     return names
 
 
@@ -98,15 +113,20 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help='multiples of the realistic value (default: 0,0.5,1,2; '
                              '--quick: 0,1,2)')
     parser.add_argument('--monte-carlo', type=int, default=None, metavar='N',
-                        help='plants per magnitude of the parameters row (default: 8; --quick: '
+                        help='plants per magnitude of the parameters row (default: 6; --quick: '
                              '2; 0 drops the row)')
     parser.add_argument('--duration', type=positive(float), default=None, metavar='S',
-                        help='validation profile length (default: 130; --quick: 16)')
+                        help='validation profile length (default: 130; --quick: 12)')
     parser.add_argument('--closed-loop', type=positive(float), default=None, metavar='S',
-                        help='closed-loop angle steps length, 8 s per step (default: 64; '
-                             '--quick: 16)')
+                        help='closed-loop angle steps length (default: 64; --quick: 16)')
+    parser.add_argument('--hold', type=positive(float), default=None, metavar='S',
+                        help='closed-loop hold per step (default: 8, the demo\'s)')
     parser.add_argument('--quick', action='store_true',
                         help='few magnitudes, short runs, 2 Monte Carlo plants (about a minute)')
+    parser.add_argument('--estimators', type=estimator_list, default=DEFAULT_ESTIMATORS,
+                        metavar='NAME,...',
+                        help=f'columns, of {", ".join(ESTIMATORS)} '
+                             f'(default: {",".join(DEFAULT_ESTIMATORS)})')
     parser.add_argument('--identified', action='store_true',
                         help='add the identified estimator: a simulated calibration campaign '
                              '(effects included) and partial identification per plant; slow '
@@ -119,13 +139,14 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--plots', metavar='DIR', help='write robustness_<figure>.png here')
     args = parser.parse_args(argv)
     chosen = QUICK if args.quick else DEFAULTS
-    for name in ('magnitudes', 'monte_carlo', 'duration', 'closed_loop'):
+    for name in ('magnitudes', 'monte_carlo', 'duration', 'closed_loop', 'hold'):
         if getattr(args, name) is None:
             setattr(args, name, chosen[name])
     if args.monte_carlo < 0:
         parser.error(f'--monte-carlo must be >= 0, got {args.monte_carlo}')
-    if args.closed_loop < 2 * 8.0:
-        parser.error(f'--closed-loop must be >= 16 s (two 8 s steps), got {args.closed_loop:g}')
+    if args.hold < 2.0 or args.closed_loop < 2 * args.hold:
+        parser.error(f'--closed-loop must hold two steps of --hold >= 2 s, got '
+                     f'{args.closed_loop:g} s and {args.hold:g} s')
     if args.monte_carlo == 0:
         args.effects = tuple(r for r in args.effects if r != PARAMETERS)
         if not args.effects:
@@ -151,10 +172,12 @@ def body(argv=None) -> int:
     gains = gains_from(values, 'angle')
     plan = (CampaignPlan(hold=5.0, pair_hold=2.0, free_duration=30.0, seed=args.seed)
             if args.quick else CampaignPlan(seed=args.seed))
-    estimators = ('nominal', 'oracle', 'identified') if args.identified else ('nominal', 'oracle')
+    estimators = args.estimators + (('identified',) if args.identified
+                                    and 'identified' not in args.estimators else ())
     settings = Settings(base=base, rows=args.effects, magnitudes=args.magnitudes,
                         monte_carlo=args.monte_carlo, seed=args.seed,
                         validation_duration=args.duration, closed_loop_duration=args.closed_loop,
+                        reference_hold=args.hold,
                         estimators=estimators, campaign=plan, gains=(gains.kp, gains.ki),
                         anti_windup=values['anti_windup'], tracking_time=values['tracking_time'])
     print(f"pam-robustness: base '{base.name}' ({base.effects.describe()} effects), "

@@ -1,6 +1,7 @@
 """pam-robustness (issue 17 item 3) as a user runs it, and the closed loop with a plant that has
 unmodelled effects. The --quick run (about a minute) is shared by the tests that read it."""
 
+import itertools
 import json
 import subprocess
 from dataclasses import replace
@@ -39,18 +40,24 @@ def rows_of(document, row):
 
 
 def test_quick_shows_the_error_growing_with_the_hysteresis(quick):
+    """The oracle (true parameters: the hysteresis is its only error) grows in every figure; the
+    nominal estimator's torque Q grows too (its angle Q is the parameter mismatch's, which the
+    hysteresis partly offsets: not monotone). The model extensions take the hysteresis away."""
     result, document, out = quick
     assert document['magnitudes'] == [0.0, 1.0, 2.0]
     hysteresis = rows_of(document, 'hysteresis')
     assert [r['magnitude'] for r in hysteresis] == [0.0, 1.0, 2.0]
-    for estimator in ('nominal', 'oracle'):
-        for figure in ('q_psi', 'q_tau', 'ss_error'):
-            values = [r['figures'][estimator][figure] for r in hysteresis]
-            assert all(b >= a - 0.05 for a, b in zip(values, values[1:])), (estimator, figure,
-                                                                            values)
+    for estimator, figure in (('oracle', 'q_psi'), ('oracle', 'q_tau'), ('oracle', 'ss_error'),
+                              ('nominal', 'q_tau')):
+        values = [r['figures'][estimator][figure] for r in hysteresis]
+        assert all(b >= a - 0.05 for a, b in itertools.pairwise(values)), (estimator, figure,
+                                                                           values)
     oracle = [r['figures']['oracle'] for r in hysteresis]
     assert oracle[2]['q_psi'] > oracle[0]['q_psi'] + 2.0
     assert oracle[2]['q_tau'] > oracle[0]['q_tau'] + 2.0
+    extended = [r['figures']['oracle+ext'] for r in hysteresis]
+    assert extended[2]['q_psi'] < oracle[2]['q_psi'] / 3 and extended[2]['q_tau'] < oracle[2][
+        'q_tau'] / 3
     # the printed table carries the same figures
     lines = [line.split() for line in result.stdout.splitlines()
              if line.startswith('hysteresis ')]
@@ -69,7 +76,7 @@ def test_zero_magnitude_is_the_base_plant(quick):
     _, document, _ = quick
     base = load_scenario('mild')
     plant = PamModel(params=base.apply(load_parameters()))
-    profile = validation_profile(1, 16.0, plant.h)
+    profile = validation_profile(1, 12.0, plant.h)
     expected = {}
     for name, model in (('nominal', PamModel()), ('oracle', plant)):
         figures = {}
@@ -82,6 +89,7 @@ def test_zero_magnitude_is_the_base_plant(quick):
                                      sensor=base.sensor, seed=1)
         figures['ss_error'] = loop.report(ANGLE_SPAN, 2.0).worst_error
         expected[name] = figures
+    expected['oracle+ext'] = expected['oracle']       # no effect: no extension
     zero = [r for r in document['table'] if r['magnitude'] == 0.0]
     assert len(zero) == len(document['rows']) + 1     # the Monte Carlo row: mean and worst
     for row in zero:
@@ -119,7 +127,7 @@ def test_the_effects_loop_without_effects_is_the_batch_loop(mode):
     (['--magnitudes', '-1'], 'in [0, 100]'),
     (['--effects', 'hysteresis,wobble'], "unknown effect 'wobble'"),
     (['--monte-carlo', '-1'], '--monte-carlo must be >= 0'),
-    (['--closed-loop', '5'], '--closed-loop must be >= 16 s'),
+    (['--closed-loop', '5'], '--closed-loop must hold two steps'),
     (['--duration', '0'], 'must be > 0'),
     (['--base', '/nonexistent/scenario.yaml'], '/nonexistent/scenario.yaml'),
 ])
