@@ -20,6 +20,7 @@ from pam_estimator.pam_ukf import TUNINGS
 from pam_model.identification.force_fit import intercept_combinations
 from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
+from pam_model.model_extensions import NO_EXTENSIONS, load_extensions
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
@@ -69,6 +70,26 @@ def test_identify_recovers_the_plant_and_writes_loadable_files(identified):
     assert abs(params.mu_s / truth.mu_s - 1.0) < 0.03
     kappa = load_valve_map(out / 'kappa.csv')
     np.testing.assert_allclose(kappa.alpha, load_valve_map()(kappa.u), atol=0.005)
+
+
+def test_the_extensions_file_is_written_and_empty_for_a_plant_without_effects(bags, identified,
+                                                                              tmp_path):
+    """extensions.yaml beside params.yaml, read as ukf_node reads it: no extension on 'mild'
+    (each fit says why in the report); --no-extensions gives the same parameters, no extension
+    fit in the report."""
+    out, stdout = identified
+    assert load_extensions(out / 'extensions.yaml') == NO_EXTENSIONS
+    assert 'model_extensions:=' in stdout and '--extensions' in stdout
+    report = (out / 'report.txt').read_text()
+    for group in ('[sensors]', '[hysteresis]', '[valve lag]'):
+        assert group in report
+    assert 'extensions kept (extensions.yaml): none' in report
+    paper = tmp_path / 'paper'
+    result = identify(*(bags / n for n in CALIBRATION), '-o', paper, '--no-extensions')
+    assert result.returncode == 0, result.stderr
+    assert load_parameters(paper / 'params.yaml') == load_parameters(out / 'params.yaml')
+    assert load_extensions(paper / 'extensions.yaml') == NO_EXTENSIONS
+    assert '[hysteresis]' not in (paper / 'report.txt').read_text()
 
 
 def test_the_identified_model_beats_the_nominal_one_on_a_validation_bag(bags, identified):

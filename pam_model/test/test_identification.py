@@ -29,6 +29,7 @@ from pam_model.identification.records import CalibrationRecord, RecordError
 from pam_model.identification.valve_fit import hold_segments, steady_state
 from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
+from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.parameters import load_parameters
 from pam_model.simulate import simulate
 from pam_model.valve_map import load_valve_map
@@ -226,6 +227,23 @@ def test_report_lists_every_fit_with_uncertainty_and_truth(identified, plant):
     line = next(row for row in report.splitlines() if row.startswith('mu_s '))
     assert len(line.split()) >= 7            # name unit prior value std true error
     assert 'NOT identified' not in report
+
+
+def test_a_plant_without_effects_gets_no_extensions_and_the_paper_fit(plant, campaign,
+                                                                      identified):
+    """The extension fits run by default and keep nothing on the 'mild' plant (its sensor noise,
+    no unmodelled effect): the parameters are number for number those of the paper-only fit."""
+    prior, truth, _ = plant
+    assert identified.extensions == NO_EXTENSIONS
+    paper = identify(campaign, prior, load_valve_map(), extensions=False)
+    assert paper.params == identified.params and paper.extensions == NO_EXTENSIONS
+    assert list(paper.valve_map.alpha) == list(identified.valve_map.alpha)
+    groups = [f.group for f in identified.fits]
+    assert {'sensors', 'hysteresis', 'valve lag'} <= set(groups)
+    assert 'hysteresis' not in [f.group for f in paper.fits]
+    report = format_report(identified, prior, truth, load_valve_map(), NO_EXTENSIONS)
+    assert 'extensions kept (extensions.yaml): none' in report
+    assert 'loop not seen' in report
 
 
 def test_one_lock_angle_cannot_separate_the_force_coefficients(plant, campaign):
