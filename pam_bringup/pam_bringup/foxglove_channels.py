@@ -26,6 +26,7 @@ from pam_common.topics import (
     PRESSURES,
     REFERENCE,
     ROSOUT,
+    SUPPLY_PRESSURE,
     VALVE_COMMAND,
     absolute,
 )
@@ -47,6 +48,7 @@ DRIVER_APPLIED_COMMAND = APPLIED_COMMAND.replace('~', RIGS['driver'].name, 1)
 TOPICS: tuple[tuple[str, str], ...] = (
     (PRESSURES, 'pam_interfaces/msg/Pressures'),
     (JOINT_MEASURED, 'pam_interfaces/msg/JointMeasurement'),
+    (SUPPLY_PRESSURE, 'sensor_msgs/msg/FluidPressure'),
     (JOINT_STATES, 'sensor_msgs/msg/JointState'),
     (ESTIMATE, 'pam_interfaces/msg/JointEstimate'),
     (ESTIMATE_JOINT_STATES, 'sensor_msgs/msg/JointState'),

@@ -27,7 +27,7 @@ from rcl_interfaces.msg import Log
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.task import Future
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, JointState
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
@@ -84,7 +84,7 @@ SUMMARY = [
     *SHORTHAND_HELP,
 ]
 #: The message classes of the served types (TOPICS names them as 'pkg/msg/Type').
-MESSAGE_CLASSES = (Pressures, JointMeasurement, JointState, JointEstimate, Reference,
+MESSAGE_CLASSES = (Pressures, JointMeasurement, FluidPressure, JointState, JointEstimate, Reference,
                    ControllerState, ValveCommand, DiagnosticArray, Log)
 
 

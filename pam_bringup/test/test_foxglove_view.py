@@ -5,8 +5,9 @@ subprotocol foxglove.sdk.v1, foxglove.websocket.v1 under the name foxglove-sdk a
 pam-foxglove starts first, the client connects, reads serverInfo and the advertised channels
 (one per topic, cdr with a ros2msg schema) and subscribes to every channel; only then does the
 stack start (pam-bringup: sim_node, ukf_node, pi_node, reference_node), so every topic appears
-after the server made its channels. The probe publishes the two topics no node of that stack
-does: driver_node's ~/applied_command (a hardware rig's) and /rosout lines. Each channel must
+after the server made its channels. The probe publishes the topics no node of that stack
+does by default: driver_node's ~/applied_command (a hardware rig's), supply_pressure (a rig with a
+supply transducer's) and /rosout lines. Each channel must
 deliver a binary messageData frame whose payload decodes with the advertised schema text alone
 (mcap_ros2, as a bag reader decodes) into values that make sense. Then Ctrl-C stops it cleanly.
 Bad input: a port in use is one ERROR line and exit code 1; a bad port or topic one line and 2.
@@ -26,6 +27,7 @@ import pytest
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory
 from rcl_interfaces.msg import Log
+from sensor_msgs.msg import FluidPressure
 
 from pam_bringup.foxglove_channels import TOPICS
 from pam_common.testing import (
@@ -77,6 +79,7 @@ def voltages(m) -> bool:
 SENSIBLE = {
     'pam_interfaces/msg/Pressures': pressures,
     'pam_interfaces/msg/JointMeasurement': joint,
+    'sensor_msgs/msg/FluidPressure': lambda m: m.fluid_pressure == 7.1e5,
     'pam_interfaces/msg/JointEstimate': lambda m: pressures(m) and joint(m),
     'sensor_msgs/msg/JointState': lambda m: (
         len(m.name) == len(m.position) == len(m.velocity) == len(m.effort) == 1 and m.name[0]
@@ -193,6 +196,7 @@ def test_a_client_receives_every_channel_decodable(node_process, probe, ros_doma
     wait_for_log(view, 'INFO', 'pam.foxglove_view', url, timeout=STARTUP_TIMEOUT)
     applied = probe.publisher(ValveCommand, '/pam/driver_node/applied_command')
     rosout = probe.publisher(Log, '/rosout')
+    supply = probe.publisher(FluidPressure, '/pam/supply_pressure')
 
     def start_stack():
         node_process('pam-bringup', 'pam_bringup', '--domain-id', str(ros_domain), raw=True)
@@ -200,6 +204,7 @@ def test_a_client_receives_every_channel_decodable(node_process, probe, ros_doma
     def publish():
         applied.publish(ValveCommand(u1=5.0, u2=5.0))
         rosout.publish(Log(level=Log.INFO, name='test_probe', msg=LOG_TEXT))
+        supply.publish(FluidPressure(fluid_pressure=7.1e5))
 
     started = time.time_ns()
     first = asyncio.run(watch(url, start_stack, publish, TIMEOUT))
