@@ -8,7 +8,8 @@ paper's definition, the headline) and after an initial transient (metrics_after,
 
 Both start from one state, start_state(run, start):
 * 'measured' (the default): what the rig measures at sample 0: the measured angle and angular
-  velocity and the first MEASURED pressures (noisy, as a live filter starts);
+  velocity and the first MEASURED pressures (noisy, as a live filter starts; with the sensor
+  extensions, read through them as the UKF reads every sample);
 * 'recorded': the run's recorded state x[0] (the behaviour before issue 17): in a bag the same as
   'measured' (a bag's x holds the measured pressures); in a pam-simulate run the TRUE pressures,
   which no estimator on a rig can know. MODEL.md fixes no initial state; the metrics' definitions
@@ -57,13 +58,16 @@ class Estimates:
 STARTS = ('measured', 'recorded')
 
 
-def start_state(run: SimulationResult, start: str = STARTS[0]) -> np.ndarray:
+def start_state(run: SimulationResult, start: str = STARTS[0],
+                extensions: Effects = NO_EXTENSIONS) -> np.ndarray:
     """The state (4,) [psi rad, psi_dot rad/s, P1 Pa, P2 Pa] the UKF and the model alone start
-    from: 'measured' (measured angle and velocity, first measured pressures) or 'recorded'
-    (the run's x[0])."""
+    from: 'measured' (measured angle and velocity, first measured pressures, read through the
+    extensions' sensor offset o and gain error g as the UKF reads them: (y - o) / (1 + g)) or
+    'recorded' (the run's x[0])."""
     if start == 'measured':
-        x0 = np.array([run.x[0, 0], run.x[0, 1], run.p_measured[0, 0], run.p_measured[0, 1]],
-                      dtype=float)
+        pressures = ((run.p_measured[0] - np.asarray(extensions.sensor_offset))
+                     / (1.0 + np.asarray(extensions.sensor_gain_error)))
+        x0 = np.array([run.x[0, 0], run.x[0, 1], pressures[0], pressures[1]], dtype=float)
     elif start == 'recorded':
         x0 = np.array(run.x[0], dtype=float)
     else:
@@ -78,10 +82,11 @@ def run_ukf(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_
             x0=None, extensions: Effects = NO_EXTENSIONS, supply=None) -> Estimates:
     """The UKF over a run: at sample k it predicts with u[k-1] and updates with p_measured[k].
 
-    x0: its initial state, default start_state(run); extensions: its model's
+    x0: its initial state, default start_state(run, extensions=extensions); extensions: its
+    model's
     (pam_model.model_extensions); supply (N,): the measured supply pressure (Pa abs) at each
     sample, P_tank of the step to it (None: the model's P_tank)."""
-    x0 = start_state(run) if x0 is None else x0
+    x0 = start_state(run, extensions=extensions) if x0 is None else x0
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0), extensions=extensions)
     n = len(run.t)
     X = np.empty((n, 4))
@@ -107,7 +112,7 @@ def run_model_alone(run: SimulationResult, model: PamModel, x0=None,
     """The model open loop from the run's commands, from x0 (default start_state(run)), with
     the extensions' valve lag, dead volume and hysteresis (pam_model.effects.EffectsPlant, through
     simulate); the paper's model (one compiled loop) without."""
-    alone = simulate(model, run.u, start_state(run) if x0 is None else x0,
+    alone = simulate(model, run.u, start_state(run, extensions=extensions) if x0 is None else x0,
                      effects=model_alone_effects(extensions))
     return Estimates(alone.x, alone.torque)
 
@@ -131,7 +136,7 @@ def evaluate(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT
     see run_ukf (the UKF's only)."""
     model = PamModel(params=model.params, valve_map=model.valve_map, friction=model.friction,
                      force=model.force, locked=run.locked, h=model.h)
-    x0 = start_state(run, start)
+    x0 = start_state(run, start, extensions)
     alone = run_model_alone(run, model, x0, extensions)
     ukf = run_ukf(run, model, tuning, x0, extensions, supply)
     table = {name: metrics(*measured_and_estimated(run, est))
@@ -150,7 +155,7 @@ def compare_models(run: SimulationResult, model: PamModel, tuning: UkfTuning = D
                    start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None):
     """The UKF with each friction law (Table III) and each force model: {label: Metrics}
     (each with the extensions and the supply of run_ukf)."""
-    x0 = start_state(run, start)
+    x0 = start_state(run, start, extensions)
     results = {}
     for friction in FrictionLaw:
         variant = PamModel(params=model.params, valve_map=model.valve_map, friction=friction,
