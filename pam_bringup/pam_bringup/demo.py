@@ -187,7 +187,6 @@ def main(argv=None) -> int:
     paths = DemoPaths(args.out)
     try:
         paths.prepare()
-        params = write_run_params(paths, default_params_file(), args.scenario)
     except (OSError, ValueError) as exc:
         return error(str(exc))
     env = dict(os.environ, ROS_DOMAIN_ID=demo_domain(args.domain_id), PYTHONUNBUFFERED='1')
@@ -209,6 +208,10 @@ def main(argv=None) -> int:
     if code:
         return code
     identification = identification_summary(paths.identified)
+    try:
+        params = write_run_params(paths, default_params_file(), args.scenario)
+    except (OSError, ValueError) as exc:
+        return error(str(exc))
     print(f"demo: identified model in {paths.identified}/ (report.txt)"
           + ('' if identification['complete'] else '; kept at the prior: '
              + '; '.join(identification['not_identified'])), flush=True)

@@ -87,7 +87,8 @@ class DemoPaths:
 def run_params(base: dict, scenario: str, identified: Path | None) -> dict:
     """The stack's parameter file for one run: base (config/bringup.yaml's content) with the
     simulated rig on `scenario` and, for the identified run, ukf_node on the identified model
-    (params.yaml, kappa.csv, extensions.yaml of pam-identify's output directory)."""
+    (params.yaml, kappa.csv, extensions.yaml of pam-identify's output directory: it always
+    writes all three)."""
     data = json.loads(json.dumps(base))          # a deep copy of plain YAML data
     sim = data.setdefault('/pam/sim_node', {}).setdefault('ros__parameters', {})
     sim['mismatch'] = scenario
@@ -95,9 +96,7 @@ def run_params(base: dict, scenario: str, identified: Path | None) -> dict:
         ukf = data.setdefault('/pam/ukf_node', {}).setdefault('ros__parameters', {})
         ukf['model_parameters'] = str(identified / 'params.yaml')
         ukf['valve_map'] = str(identified / 'kappa.csv')
-        extensions = identified / 'extensions.yaml'
-        if extensions.is_file():
-            ukf['model_extensions'] = str(extensions)
+        ukf['model_extensions'] = str(identified / 'extensions.yaml')
     return data
 
 

@@ -12,6 +12,7 @@ import subprocess
 from pathlib import Path
 
 from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable
+from pam_model.model_extensions import load_extensions
 
 DURATION = 12.0   # s recorded: the first 8 s reference step, then about 4 s of the next one
 
@@ -72,6 +73,11 @@ def test_the_demo_runs_the_workflow_and_stops_the_stacks(node_process, ros_domai
     params = (out / 'demo' / 'bringup_identified.yaml').read_text()
     assert str(identified / 'params.yaml') in params and 'mismatch: realistic' in params
     assert str(identified) not in (out / 'demo' / 'bringup_nominal.yaml').read_text()
+    # the identified stack's ukf_node runs with the identified extensions, the nominal one none
+    extensions = load_extensions(identified / 'extensions.yaml').describe()
+    assert f'model extensions: {extensions}' in (
+        out / 'logs' / 'identified' / 'pam_container.log').read_text()
+    assert 'model extensions: none' in (out / 'logs' / 'nominal' / 'pam_container.log').read_text()
     for run in ('nominal', 'identified'):
         assert f'=== {run} model ===' in stdout, stdout
         assert re.search(rf'^\[INFO\] \[[\d.]+\] \[{run}.tracking_report\]', stdout,
