@@ -19,8 +19,10 @@ The estimators (columns):
 * 'oracle+ext': the same with the plant's true estimator-side effects as model extensions
   (pam_model.model_extensions: valve lag, dead volume, hysteresis, sensor offset and gain; not the
   supply, temperature or sensor filter): what remains when those are modelled and known;
-* 'identified' (optional, costly): the UKF with what pam_model.identification.identify (partial)
-  makes of a simulated calibration campaign on that plant, effects included.
+* 'identified' and 'identified+ext' (optional, costly): the UKF with what
+  pam_model.identification.identify (partial) makes of a simulated calibration campaign on that
+  plant, effects included: the paper's model only, and with the extensions it identifies
+  (pam-identify's extensions.yaml).
 
 The UKF runs of all plants x estimators sharing a valve map go through one compiled kernel
 (ukf_runs_kernel: the estimation of many plants at once); the plants with effects step sample
@@ -161,17 +163,30 @@ def estimation_q(runs, estimators, tuning=DEFAULT_TUNING) -> np.ndarray:
     return q
 
 
-def identified_model(plant_model: PamModel, plant: Plant, sensor, nominal: PamModel, plan):
-    """The model pam-identify (partial) makes of a simulated campaign on the plant, or None
-    when the fits give an impossible set (IdentificationError: its figures are then NaN)."""
+IDENTIFIED = ('identified', 'identified+ext')
+
+
+def identified_estimators(plant_model: PamModel, plant: Plant, sensor, nominal: PamModel, plan,
+                          names) -> dict:
+    """{name: Estimator or None} for the names of IDENTIFIED asked for: what
+    pam_model.identification.identify (partial) makes of one simulated calibration campaign on
+    the plant (effects included): 'identified' the paper's model only (extensions=False),
+    'identified+ext' with the extensions it identifies. None where the fits give an impossible
+    set (IdentificationError: the figures are then NaN)."""
     from pam_model.identification.campaign import records_of, simulate_campaign
     from pam_model.identification.identify import IdentificationError, identify
-    runs = simulate_campaign(plant_model, sensor, plan, effects=plant.effects)
-    try:
-        ident = identify(records_of(runs), nominal.params, nominal.valve_map, partial=True)
-    except IdentificationError:
-        return None
-    return Estimator(replace(nominal, params=ident.params, valve_map=ident.valve_map))
+    records = records_of(simulate_campaign(plant_model, sensor, plan, effects=plant.effects))
+    out = {}
+    for name in names:
+        try:
+            ident = identify(records, nominal.params, nominal.valve_map, partial=True,
+                             extensions=name == 'identified+ext')
+        except IdentificationError:
+            out[name] = None
+            continue
+        out[name] = Estimator(replace(nominal, params=ident.params, valve_map=ident.valve_map),
+                              ident.extensions)
+    return out
 
 
 def closed_loop_figures(plant_model: PamModel, plant: Plant, estimator: Estimator, reference,
@@ -243,9 +258,10 @@ def run_sweep(settings: Settings, nominal: PamModel, log: Callable[[str], None] 
         for key, plant, model in batch:
             models[key] = {'nominal': Estimator(nominal), 'oracle': Estimator(model),
                            'oracle+ext': Estimator(model, estimator_extensions(plant.effects))}
-            if 'identified' in settings.estimators:
-                models[key]['identified'] = stage('identify', identified_model, model, plant,
-                                                  sensor, nominal, settings.campaign)
+            asked = [name for name in IDENTIFIED if name in settings.estimators]
+            if asked:
+                models[key].update(stage('identify', identified_estimators, model, plant, sensor,
+                                         nominal, settings.campaign, asked))
             done[key] = {name: dict.fromkeys(('q_psi', 'q_tau', 'ss_error', 'settling'), nan)
                          for name in settings.estimators}
             models[key] = {name: models[key][name] for name in settings.estimators

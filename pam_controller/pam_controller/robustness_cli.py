@@ -18,7 +18,7 @@ from pam_model.cli.common import run_cli
 
 from .robustness_plants import PARAMETERS, ROWS
 
-ESTIMATORS = ('nominal', 'oracle', 'oracle+ext', 'identified')
+ESTIMATORS = ('nominal', 'oracle', 'oracle+ext', 'identified', 'identified+ext')
 DEFAULT_ESTIMATORS = ESTIMATORS[:3]
 
 QUICK = {'magnitudes': (0.0, 1.0, 2.0), 'monte_carlo': 2, 'duration': 12.0,
@@ -31,8 +31,9 @@ EXAMPLES = '''examples:
   pam-robustness --effects hysteresis,dead_volume --magnitudes 0,0.25,0.5,1,2,4
   pam-robustness --base realistic --effects hysteresis   hysteresis on top of every other effect
   pam-robustness --effects parameters --monte-carlo 20   parameter deviations only
-  pam-robustness --quick --identified              add the identified estimator (a calibration
-                                                   campaign and pam-identify per plant: slow)
+  pam-robustness --quick --identified --effects hysteresis,dead_volume
+                          add the identified estimators (a calibration campaign and
+                          pam-identify --partial per plant: slow)
 
 rows: {rows}
   a row scales its effect to magnitude x its value in the 'realistic' scenario; 'all' scales
@@ -40,8 +41,9 @@ rows: {rows}
 columns (--estimators): nominal = the UKF with the shipped parameters; oracle = the UKF with
   the plant's TRUE parameters and no model of the effects (perfect identification); oracle+ext =
   the oracle with the plant's true valve lag, dead volume, hysteresis and sensor offset/gain as
-  model extensions (docs/model_extensions.md); identified (--identified): pam-identify --partial
-  on a simulated calibration campaign of each plant.
+  model extensions (docs/model_extensions.md); identified, identified+ext (--identified):
+  pam-identify --partial on a simulated calibration campaign of each plant, the paper's model
+  only / with the extensions it identifies (its extensions.yaml).
 '''
 
 
@@ -128,10 +130,11 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help=f'columns, of {", ".join(ESTIMATORS)} '
                              f'(default: {",".join(DEFAULT_ESTIMATORS)})')
     parser.add_argument('--identified', action='store_true',
-                        help='add the identified estimator: a simulated calibration campaign '
-                             '(effects included) and partial identification per plant; slow '
-                             '(about 25 s per plant with --quick\'s shortened campaign, over a '
-                             'minute with the full one; NaN where identify fails)')
+                        help='add the identified estimators (identified, identified+ext): a '
+                             'simulated calibration campaign (effects included) and partial '
+                             'identification, without and with the extensions, per plant; slow '
+                             '(about 25 s of CPU per plant and column with --quick\'s shortened '
+                             'campaign, more with the full one; NaN where identify fails)')
     parser.add_argument('--seed', type=int, default=1,
                         help='validation profile, sensor noise and Monte Carlo seed '
                              '(default: %(default)s)')
@@ -172,8 +175,8 @@ def body(argv=None) -> int:
     gains = gains_from(values, 'angle')
     plan = (CampaignPlan(hold=5.0, pair_hold=2.0, free_duration=30.0, seed=args.seed)
             if args.quick else CampaignPlan(seed=args.seed))
-    estimators = args.estimators + (('identified',) if args.identified
-                                    and 'identified' not in args.estimators else ())
+    estimators = args.estimators + tuple(
+        name for name in ESTIMATORS[3:] if args.identified and name not in args.estimators)
     settings = Settings(base=base, rows=args.effects, magnitudes=args.magnitudes,
                         monte_carlo=args.monte_carlo, seed=args.seed,
                         validation_duration=args.duration, closed_loop_duration=args.closed_loop,
