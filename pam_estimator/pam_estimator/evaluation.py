@@ -85,7 +85,8 @@ def run_ukf(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_
     x0: its initial state, default start_state(run, extensions=extensions); extensions: its
     model's
     (pam_model.model_extensions); supply (N,): the measured supply pressure (Pa abs) at each
-    sample, P_tank of the step to it (None: the model's P_tank)."""
+    sample, P_tank of the step from it (None: the model's P_tank; NaN: the model's for that
+    step)."""
     x0 = start_state(run, extensions=extensions) if x0 is None else x0
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0), extensions=extensions)
     n = len(run.t)
