@@ -288,6 +288,7 @@ class PamUkf:
         self._sensor_gain = 1.0 + np.asarray(e.sensor_gain_error)
         self._sensor_offset = np.asarray(e.sensor_offset)
         self._record = self.model.params_array.copy()    # P_tank of a step written here
+        self._extended = e.active
         self.reset()
 
     def reset(self, x0=None, P0=None) -> None:
@@ -326,7 +327,7 @@ class PamUkf:
         if y.shape != (2,) or u_prev.shape != (2,):
             raise ValueError('y needs 2 pressures (Pa) and u_prev 2 voltages (V)')
         m, info = self.model, self._info
-        if self.extensions.active or supply is not None:
+        if self._extended or supply is not None:
             self._step_with_effects(y, u_prev, supply)
         else:
             ukf_step(self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params_array,
