@@ -118,10 +118,13 @@ class UkfNode(Node):
                if self.core.use_supply else ''))
 
     def _warm_up(self) -> None:
-        """Run the compiled kernel once (loads numba's cache or compiles) on a throw-away copy."""
+        """Run the compiled kernels once (loads numba's cache or compiles) on a throw-away copy:
+        with use_supply_pressure, both paths (a reading, none)."""
         ukf = self.core.ukf
         x, P = ukf.x.copy(), ukf.P.copy()
         ukf.step(ukf.x[2:], self.core.u_prev)
+        if self.core.use_supply:
+            ukf.step(ukf.x[2:], self.core.u_prev, ukf.model.params.P_tank)
         ukf.reset(x, P)
 
     def _on_command(self, msg: ValveCommand) -> None:
