@@ -340,6 +340,9 @@ class PamUkf:
             self.repairs += 1
             self.P = np.diag(np.asarray(self.tuning.P0, dtype=float))
             F1, F2, tau = (float(v) for v in m.outputs(self.x))
+            if self._hysteresis is not None:
+                F1, F2 = F1 + self.F_h[0], F2 + self.F_h[1]
+                tau = m.params.r * math.cos(self.x[0]) * (F1 - F2)
             tau_var, accepted = 0.0, False
         self.steps += 1
         self.repairs += int(repairs)
