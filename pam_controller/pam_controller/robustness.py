@@ -56,8 +56,7 @@ from .robustness_plants import Plant, sweep_plants
 from .step_metrics import ANGLE_SPAN
 
 X0 = (0.0, 0.0, 4.5e5, 4.5e5)       # rad, rad/s, Pa, Pa: every run's initial state
-#: The demo's reference (reference_node's defaults): angle steps held 8 s, seed 0.
-REFERENCE_SEED = 0
+REFERENCE_SEED = 0                   # the demo's reference steps (reference_node's seed)
 CHUNK = 8                            # distinct plants whose runs are held (and batched) at once
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -65,22 +66,16 @@ def number_list(text: str) -> tuple:
     return tuple(sorted(set(values)))
 
 
-def row_list(text: str) -> tuple:
-    names = tuple(dict.fromkeys(v.strip() for v in text.split(',') if v.strip()))
-    unknown = [n for n in names if n not in ROWS]
-    if unknown or not names:
-        raise argparse.ArgumentTypeError(f'unknown effect {unknown[0] if unknown else text!r} '
-                                         f'(known: {", ".join(ROWS)})')
-    return names
-
-
-def estimator_list(text: str) -> tuple:
-    names = tuple(dict.fromkeys(v.strip() for v in text.split(',') if v.strip()))
-    unknown = [n for n in names if n not in ESTIMATORS]
-    if unknown or not names:
-        raise argparse.ArgumentTypeError(f'unknown estimator {unknown[0] if unknown else text!r} '
-                                         f'(known: {", ".join(ESTIMATORS)})')
-    return names
+def name_list(known: tuple, what: str):
+    """An argparse type: comma-separated names out of `known` (in the order given, once each)."""
+    def parse(text: str) -> tuple:
+        names = tuple(dict.fromkeys(v.strip() for v in text.split(',') if v.strip()))
+        unknown = [n for n in names if n not in known]
+        if unknown or not names:
+            raise argparse.ArgumentTypeError(f'unknown {what} {unknown[0] if unknown else text!r}'
+                                             f' (known: {", ".join(known)})')
+        return names
+    return parse
 
 
 def positive(kind):
@@ -98,18 +93,20 @@ def positive(kind):
 def parse_args(argv=None) -> argparse.Namespace:
     parser = OneLineParser(
         prog='pam-robustness', formatter_class=argparse.RawDescriptionHelpFormatter,
-        description='For each unmodelled effect of a real rig (valve lag, dead volume, supply '
-                    'droop and ripple, force hysteresis, temperature drift, sensor offset and '
-                    'gain, sensor filter), swept over its magnitude on top of a base mismatch, '
-                    'and for Monte Carlo parameter deviations: the UKF\'s Q of angle and torque '
-                    'over the validation profile, and the sensor-less closed loop\'s worst '
-                    'steady-state error and settling over the demo\'s angle steps (pi_node\'s '
-                    'default gains). Prints the table and what matters most.',
+        description=textwrap.fill(
+            'For each unmodelled effect of a real rig (valve lag, dead volume, supply '
+            'droop and ripple, force hysteresis, temperature drift, sensor offset and '
+            'gain, sensor filter), swept over its magnitude on top of a base mismatch, '
+            'and for Monte Carlo parameter deviations: the UKF\'s Q of angle and torque '
+            'over the validation profile, and the sensor-less closed loop\'s worst '
+            'steady-state error and settling over the demo\'s angle steps (pi_node\'s '
+            'default gains). Prints the table and what matters most.', 79),
         epilog=EXAMPLES.format(rows=', '.join(ROWS)))
     parser.add_argument('--base', default='mild', metavar='NAME|FILE',
                         help="mismatch scenario under the sweep: 'mild', 'strong', 'realistic', "
                              "'harsh' or a YAML file (default: %(default)s)")
-    parser.add_argument('--effects', type=row_list, default=ROWS, metavar='ROW,...',
+    parser.add_argument('--effects', type=name_list(ROWS, 'effect'), default=ROWS,
+                        metavar='ROW,...',
                         help='rows to sweep (default: all of them)')
     parser.add_argument('--magnitudes', type=number_list, default=None, metavar='M,...',
                         help='multiples of the realistic value (default: 0,0.5,1,2; '
@@ -125,8 +122,8 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help='closed-loop hold per step (default: 8, the demo\'s)')
     parser.add_argument('--quick', action='store_true',
                         help='few magnitudes, short runs, 2 Monte Carlo plants (about a minute)')
-    parser.add_argument('--estimators', type=estimator_list, default=DEFAULT_ESTIMATORS,
-                        metavar='NAME,...',
+    parser.add_argument('--estimators', type=name_list(ESTIMATORS, 'estimator'),
+                        default=DEFAULT_ESTIMATORS, metavar='NAME,...',
                         help=f'columns, of {", ".join(ESTIMATORS)} '
                              f'(default: {",".join(DEFAULT_ESTIMATORS)})')
     parser.add_argument('--identified', action='store_true',
