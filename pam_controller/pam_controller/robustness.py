@@ -52,6 +52,7 @@ from pam_model.profiles import step_reference_profile, validation_profile
 from pam_model.simulate import simulate
 
 from .closed_loop import simulate_closed_loop, simulate_closed_loop_with_effects
+from .pi import PiGains
 from .robustness_plants import Plant, sweep_plants
 from .step_metrics import ANGLE_SPAN
 
@@ -77,6 +78,7 @@ class Settings:
     estimators: tuple = ('nominal', 'oracle')
     campaign: object = None          # pam_model.identification.campaign.CampaignPlan
     gains: tuple = (40.0, 50.0)      # kp V/rad, ki V/(rad s)
+    limits: PiGains = PiGains(0.0, 0.0)   # its beta, u_min, u_max (V)
     anti_windup: str = 'conditional'
     tracking_time: float = 0.1       # s
 
@@ -192,6 +194,7 @@ def closed_loop_figures(plant_model: PamModel, plant: Plant, estimator: Estimato
                         settings: Settings, sensor) -> dict:
     """Worst steady-state error (% of the 40 deg range) and settling (s) of the angle steps."""
     args = dict(sensor=sensor, mode='angle', anti_windup=settings.anti_windup,
+                limits=settings.limits,
                 tracking_time=settings.tracking_time, x0=X0, seed=settings.seed)
     model, extensions = estimator
     if plant.effects.active or extensions.active or model.valve_map is not plant_model.valve_map:

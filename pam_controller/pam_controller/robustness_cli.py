@@ -179,6 +179,7 @@ def body(argv=None) -> int:
                         validation_duration=args.duration, closed_loop_duration=args.closed_loop,
                         reference_hold=args.hold,
                         estimators=estimators, campaign=plan, gains=(gains.kp, gains.ki),
+                        limits=gains,
                         anti_windup=values['anti_windup'], tracking_time=values['tracking_time'])
     print(f"pam-robustness: base '{base.name}' ({base.effects.describe()} effects), "
           f'magnitudes {", ".join(f"{m:g}" for m in args.magnitudes)} x realistic, seed '
