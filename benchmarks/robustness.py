@@ -7,7 +7,7 @@ plant, and 6 Monte Carlo parameter draws per magnitude: the UKF's whole-run Q_ps
 the 130 s validation profile (nominal and oracle estimators) and the sensor-less closed loop's
 worst steady-state error and settling over the demo's 64 s of angle steps. Writes
 OUT/robustness.json and OUT/robustness_<figure>.png; docs/robustness.md holds the figures.
-About 12 minutes on one idle core of the 2-core development machine.
+About 7.5 minutes (447 s of CPU) on the 2-core development machine at low load.
 
     .venv/bin/python benchmarks/robustness.py [--out out/robustness] [pam-robustness options]
 """

@@ -28,7 +28,7 @@ DEFAULTS = {'magnitudes': (0.0, 0.5, 1.0, 2.0), 'monte_carlo': 6, 'duration': 13
             'closed_loop': 64.0, 'hold': 8.0}
 EXAMPLES = '''examples:
   pam-robustness --quick                          every effect at 0, 1, 2 x, short runs (~1 min)
-  pam-robustness --json out/robustness.json --plots out/robustness   the full benchmark (~12 min)
+  pam-robustness --json out/robustness.json --plots out/robustness   the full benchmark (~8 min)
   pam-robustness --effects hysteresis,dead_volume --magnitudes 0,0.25,0.5,1,2,4
   pam-robustness --base realistic --effects hysteresis   hysteresis on top of every other effect
   pam-robustness --effects parameters --monte-carlo 20   parameter deviations only
