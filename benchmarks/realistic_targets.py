@@ -110,8 +110,14 @@ def main():
     parser.add_argument('--seeds', default='1,2,3', help='profile seeds (validation, steps)')
     parser.add_argument('--campaign-seed', type=int, default=0)
     parser.add_argument('--keep', metavar='DIR', help='keep the bags and results in DIR')
+    parser.add_argument('--angle-gains', metavar='KP,KI', default='40,50',
+                        help="the angle loop's PI gains, V/rad, V/(rad s) (default pi_node's: "
+                             '40,50): the settling of the large steps is the valves\' limit, '
+                             'not the gains\' (try 120,100)')
     args = parser.parse_args()
+    GAINS['angle'] = tuple(float(g) for g in args.angle_gains.split(','))
     seeds = [int(s) for s in args.seeds.split(',')]
+    print(f"PI gains: angle {GAINS['angle']}, torque {GAINS['torque']}", flush=True)
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix='pam_targets_'))
     nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
     all_ok = True
