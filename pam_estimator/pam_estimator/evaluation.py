@@ -33,6 +33,7 @@ from pam_model.model_choices import ForceModel, FrictionLaw
 from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.simulate import SimulationResult, simulate
 
+from .bias_ukf import BiasStates
 from .pam_ukf import DEFAULT_TUNING, PamUkf, UkfTuning
 
 #: The paper's offline results (MODEL.md section 6), model alone -> UKF.
@@ -48,10 +49,12 @@ PAPER_TABLE_III = {'proposed': Metrics(1.16, 3.06, 0.0791), 'linear': Metrics(2.
 
 @dataclass
 class Estimates:
-    """Time series of one estimator over a run: states (N, 4) and torque (N,)."""
+    """Time series of one estimator over a run: states (N, 4) and torque (N,); biases (N, 3):
+    the UKF's bias states b1, b2 (Pa), b_tau (N m) when it carries them, else None."""
 
     x: np.ndarray
     torque: np.ndarray
+    biases: np.ndarray | None = None
 
 
 #: The initial states start_state() builds (see the module doc); the first is the default.
@@ -79,27 +82,29 @@ def start_state(run: SimulationResult, start: str = STARTS[0],
 
 
 def run_ukf(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING,
-            x0=None, extensions: Effects = NO_EXTENSIONS, supply=None) -> Estimates:
+            x0=None, extensions: Effects = NO_EXTENSIONS, supply=None,
+            bias_states: BiasStates | None = None) -> Estimates:
     """The UKF over a run: at sample k it predicts with u[k-1] and updates with p_measured[k].
 
     x0: its initial state, default start_state(run, extensions=extensions); extensions: its
     model's
     (pam_model.model_extensions); supply (N,): the measured supply pressure (Pa abs) at each
     sample, P_tank of the step from it (None: the model's P_tank; NaN: the model's for that
-    step)."""
+    step); bias_states: None or the UKF's bias states (bias_ukf.BiasStates)."""
     x0 = start_state(run, extensions=extensions) if x0 is None else x0
-    ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0), extensions=extensions)
+    ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0), extensions=extensions,
+                 bias_states=bias_states)
     n = len(run.t)
-    X = np.empty((n, 4))
+    X = np.empty((n, len(ukf.x)))
     tau = np.empty(n)
     X[0] = ukf.x
-    tau[0] = model.outputs(ukf.x)[2]
+    tau[0] = model.outputs(ukf.x[:4])[2]
     for k in range(1, n):
         out = ukf.step(run.p_measured[k], run.u[k - 1],
                        None if supply is None else float(supply[k - 1]))
         X[k] = out.x
         tau[k] = out.torque
-    return Estimates(X, tau)
+    return Estimates(X[:, :4], tau, X[:, 4:] if bias_states is not None else None)
 
 
 def model_alone_effects(extensions: Effects) -> Effects:
@@ -131,15 +136,16 @@ def measured_and_estimated(run: SimulationResult, est: Estimates):
 
 
 def evaluate(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING,
-             start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None):
+             start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None,
+             bias_states: BiasStates | None = None):
     """{'model': Metrics, 'ukf': Metrics} (whole run) and the two Estimates for one recorded
-    run; both estimators start from start_state(run, start) and carry the extensions; supply:
-    see run_ukf (the UKF's only)."""
+    run; both estimators start from start_state(run, start) and carry the extensions; supply,
+    bias_states: see run_ukf (the UKF's only)."""
     model = PamModel(params=model.params, valve_map=model.valve_map, friction=model.friction,
                      force=model.force, locked=run.locked, h=model.h)
     x0 = start_state(run, start, extensions)
     alone = run_model_alone(run, model, x0, extensions)
-    ukf = run_ukf(run, model, tuning, x0, extensions, supply)
+    ukf = run_ukf(run, model, tuning, x0, extensions, supply, bias_states)
     table = {name: metrics(*measured_and_estimated(run, est))
              for name, est in (('model', alone), ('ukf', ukf))}
     return table, alone, ukf
@@ -153,22 +159,25 @@ def table_after(run: SimulationResult, alone: Estimates, ukf: Estimates,
 
 
 def compare_models(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_TUNING,
-                   start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None):
+                   start: str = STARTS[0], extensions: Effects = NO_EXTENSIONS, supply=None,
+                   bias_states: BiasStates | None = None):
     """The UKF with each friction law (Table III) and each force model: {label: Metrics}
-    (each with the extensions and the supply of run_ukf)."""
+    (each with the extensions, the supply and the bias states of run_ukf)."""
     x0 = start_state(run, start, extensions)
     results = {}
     for friction in FrictionLaw:
         variant = PamModel(params=model.params, valve_map=model.valve_map, friction=friction,
                            force=ForceModel.PROPOSED, locked=run.locked, h=model.h)
         results[f'friction {friction}'] = metrics(
-            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0, extensions, supply)))
+            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0, extensions, supply,
+                                                   bias_states)))
     for force in (f for f in ForceModel if f is not ForceModel.PROPOSED):
         variant = PamModel(params=model.params, valve_map=model.valve_map,
                            friction=FrictionLaw.PROPOSED, force=force, locked=run.locked,
                            h=model.h)
         results[f'force {force}'] = metrics(
-            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0, extensions, supply)))
+            *measured_and_estimated(run, run_ukf(run, variant, tuning, x0, extensions, supply,
+                                                   bias_states)))
     return results
 
 

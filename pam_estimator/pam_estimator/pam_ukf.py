@@ -44,6 +44,7 @@ from pam_model.physics import (
 )
 from pam_model.valve_voltage import sanitise_command
 
+from .bias_ukf import BiasStates, bias_outputs, bias_predict_correct
 from .unscented import (
     julier_sigma_points,
     julier_weights,
@@ -262,6 +263,9 @@ class PamUkf:
     Maxwell-slip force hysteresis driven by the posterior's eq. (6) forces and held over the next
     step (the same for every sigma point; in the outputs), sensor offset o and gain error g: the
     reading y becomes (y - o) / (1 + g) before the update (the range check is on y).
+    bias_states: None (the default: the 4-state filter, unchanged) or a bias_ukf.BiasStates: the
+    state grows to [psi, psi_dot, P1, P2, b1, b2, b_tau] with random-walk sensor offsets b1, b2
+    (Pa) and a joint-torque bias b_tau (N m) (bias_ukf.py; docs/model_extensions.md).
     """
 
     model: PamModel = field(default_factory=PamModel)
@@ -270,10 +274,15 @@ class PamUkf:
     nis_gate: float = 0.0
     y_range: tuple = (1.0e3, 2.0e6)
     extensions: Effects = NO_EXTENSIONS
+    bias_states: BiasStates | None = None
 
     def __post_init__(self):
         self.tuning = UkfTuning(*self.tuning).validate()
         self._Q = np.diag(np.asarray(self.tuning.Q, dtype=float))
+        if self.bias_states is not None:
+            self.bias_states = BiasStates(*self.bias_states).validate()
+            self._Q = np.diag(np.concatenate([self.tuning.Q,
+                                              self.bias_states.q_diag(self.model.h)]))
         self._R = np.diag(np.asarray(self.tuning.R, dtype=float))
         if not (math.isfinite(self.nis_gate) and self.nis_gate >= 0.0):
             raise ValueError(f'nis_gate must be >= 0 (0 = off), got {self.nis_gate!r}')
@@ -288,7 +297,7 @@ class PamUkf:
         self._sensor_gain = 1.0 + np.asarray(e.sensor_gain_error)
         self._sensor_offset = np.asarray(e.sensor_offset)
         self._record = self.model.params_array.copy()    # P_tank of a step written here
-        self._extended = e.active
+        self._extended = e.active or self.bias_states is not None
         self.reset()
 
     def reset(self, x0=None, P0=None) -> None:
@@ -302,6 +311,11 @@ class PamUkf:
             raise ValueError('initial covariance must be finite, 4x4 (or a 4-diagonal), '
                              'with a positive diagonal')
         self.x, self.P = x, 0.5 * (P + P.T)
+        if self.bias_states is not None:     # biases start at 0, uncorrelated
+            self.x = np.concatenate([x, np.zeros(3)])
+            self.P = np.zeros((7, 7))
+            self.P[:4, :4] = 0.5 * (P + P.T)
+            self.P[4:, 4:] = np.diag(self.bias_states.p0_diag())
         self._info = np.zeros(len(INFO_FIELDS))
         self.lock_angle = float(x[0])
         self.steps = 0
@@ -339,10 +353,14 @@ class PamUkf:
             # keep the state, restart its covariance, and report the update as skipped
             self.repairs += 1
             self.P = np.diag(np.asarray(self.tuning.P0, dtype=float))
-            F1, F2, tau = (float(v) for v in m.outputs(self.x))
+            if self.bias_states is not None:
+                self.P = np.diag(np.concatenate([self.tuning.P0, self.bias_states.p0_diag()]))
+            F1, F2, tau = (float(v) for v in m.outputs(self.x[:4]))
             if self._hysteresis is not None:
                 F1, F2 = F1 + self.F_h[0], F2 + self.F_h[1]
                 tau = m.params.r * math.cos(self.x[0]) * (F1 - F2)
+            if self.bias_states is not None:
+                tau += float(self.x[6])
             tau_var, accepted = 0.0, False
         self.steps += 1
         self.repairs += int(repairs)
@@ -371,14 +389,17 @@ class PamUkf:
             y = (y - self._sensor_offset) / self._sensor_gain
         else:
             y = np.full(2, np.nan)                  # a faulty raw reading: no update
-        x_post, P_post, F1, F2 = predict_correct_with_effects(
+        biased = self.bias_states is not None
+        predict_correct = bias_predict_correct if biased else predict_correct_with_effects
+        x_post, P_post, F1, F2 = predict_correct(
             self.x, self.P, alpha1, alpha2, y, self._Q, self._R, m.h, self._record,
             m.friction_code, m.force_code, m.locked, self.lock_angle, self.nis_gate, info,
             e.dead_volume, self.F_h[0], self.F_h[1])
         F_h = self.F_h
         if self._hysteresis is not None and np.all(np.isfinite(x_post)):
-            F_h = self._hysteresis.update((F1, F2), x_post[2:])
-        estimate_outputs(self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code,
-                         m.force_code, m.locked, F_h[0], F_h[1], info)
+            F_h = self._hysteresis.update((F1, F2), x_post[2:4])
+        (bias_outputs if biased else estimate_outputs)(
+            self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code, m.force_code,
+            m.locked, F_h[0], F_h[1], info)
         if info[9]:
             self.F_h = F_h

@@ -15,6 +15,7 @@ from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
 from ..bag_runs import SUPPLY, is_bag, load_bag_run, load_run
+from ..bias_ukf import DEFAULT_BIAS_STATES
 from ..evaluation import (
     PAPER_TABLE_III,
     STARTS,
@@ -58,6 +59,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--supply', action='store_true',
                         help='the UKF predicts with the measured supply pressure of the bag '
                              '(/pam/supply_pressure) as P_tank; bags only')
+    parser.add_argument('--bias-states', action='store_true',
+                        help='the UKF also estimates random-walk biases: pressure-sensor offsets '
+                             'b1, b2 (Pa) and a joint-torque bias b_tau (N m), with the default '
+                             'rates and initial variances (docs/model_extensions.md, Bias states)')
     parser.add_argument('--tuning', default='default', choices=sorted(TUNINGS),
                         help='UKF Q, R, P(0) preset (default: %(default)s)')
     parser.add_argument('--transient', type=float, default=DEFAULT_TRANSIENT, metavar='S',
@@ -97,13 +102,15 @@ def body(argv=None) -> int:
     model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.kappa))
     tuning = TUNINGS[args.tuning]
     extensions = load_extensions(args.extensions)
+    bias_states = DEFAULT_BIAS_STATES if args.bias_states else None
     for path in args.runs:
         try:
             run, supply = load_run_and_supply(path, args.locked, args.supply)
         except BagError as exc:
             raise ValueError(str(exc)) from exc
         kind = quantity(run)
-        table, alone, ukf = evaluate(run, model, tuning, args.start, extensions, supply)
+        table, alone, ukf = evaluate(run, model, tuning, args.start, extensions, supply,
+                                     bias_states)
         after = table_after(run, alone, ukf, args.transient)
         print(f'{path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
               f'{"locked" if run.locked else "free"} joint, tuning {args.tuning!r}, start '
@@ -111,6 +118,9 @@ def body(argv=None) -> int:
         print(f'model extensions: {extensions.describe()}'
               + (f' ({args.extensions})' if args.extensions else '')
               + (', supply pressure: measured' if supply is not None else ''))
+        if ukf.biases is not None:
+            b1, b2, b_tau = ukf.biases[-1]
+            print(f'bias states at the end: b1 {b1:.0f} Pa, b2 {b2:.0f} Pa, b_tau {b_tau:.4f} N m')
         print(format_table(kind, table, after, args.transient))
         beats = all(getattr(table['ukf'], m) < getattr(table['model'], m) for m in 'IMQ')
         print(f'UKF beats the model alone on I, M and Q: {"yes" if beats else "NO"}')
@@ -126,7 +136,7 @@ def body(argv=None) -> int:
             print(f'\nUKF with each model variant ({kind}):')
             print(f'{"variant":<30}       I        M        Q   | paper Table III (online angle)')
             for label, m in compare_models(run, model, tuning, args.start, extensions,
-                                           supply).items():
+                                           supply, bias_states).items():
                 law = label.split(' ', 1)[1]
                 ref = PAPER_TABLE_III.get(law) if label.startswith('friction') else None
                 ref_text = (f'| {ref.I:.2f} / {ref.M:.2f} / {100 * ref.Q:.2f} %'
