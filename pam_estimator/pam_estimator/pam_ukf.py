@@ -301,21 +301,26 @@ class PamUkf:
         self.reset()
 
     def reset(self, x0=None, P0=None) -> None:
-        """Restart from x0 (4,) and P0 ((4,) diagonal or (4, 4)); defaults: the configured ones."""
+        """Restart from x0 (4,) and P0 ((4,) diagonal or (4, 4)); defaults: the configured ones.
+        With bias states, x0 (7,) and P0 ((7,) or (7, 7)) too; from 4 the biases start at 0 with
+        their configured variances, uncorrelated."""
         x = np.array(self.x0 if x0 is None else x0, dtype=float)
         P = np.asarray(self.tuning.P0 if P0 is None else P0, dtype=float)
         P = np.diag(P) if P.ndim == 1 else P.copy()
-        if x.shape != (4,) or not np.all(np.isfinite(x)):
-            raise ValueError(f'initial state must be 4 finite numbers, got {x!r}')
-        if P.shape != (4, 4) or not np.all(np.isfinite(P)) or np.any(np.diag(P) <= 0.0):
-            raise ValueError('initial covariance must be finite, 4x4 (or a 4-diagonal), '
+        n = 4
+        if self.bias_states is not None:
+            n = 7
+            if x.shape == (4,):
+                x = np.concatenate([x, np.zeros(3)])
+            if P.shape == (4, 4):
+                P4, P = P, np.diag(np.concatenate([np.zeros(4), self.bias_states.p0_diag()]))
+                P[:4, :4] = P4
+        if x.shape != (n,) or not np.all(np.isfinite(x)):
+            raise ValueError(f'initial state must be {n} finite numbers, got {x!r}')
+        if P.shape != (n, n) or not np.all(np.isfinite(P)) or np.any(np.diag(P) <= 0.0):
+            raise ValueError(f'initial covariance must be finite, {n}x{n} (or a {n}-diagonal), '
                              'with a positive diagonal')
         self.x, self.P = x, 0.5 * (P + P.T)
-        if self.bias_states is not None:     # biases start at 0, uncorrelated
-            self.x = np.concatenate([x, np.zeros(3)])
-            self.P = np.zeros((7, 7))
-            self.P[:4, :4] = 0.5 * (P + P.T)
-            self.P[4:, 4:] = np.diag(self.bias_states.p0_diag())
         self._info = np.zeros(len(INFO_FIELDS))
         self.lock_angle = float(x[0])
         self.steps = 0
@@ -329,7 +334,7 @@ class PamUkf:
         if e.hysteresis_band > 0.0:
             self._hysteresis = MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
                                            e.hysteresis_travel, self.model.params.P_out)
-            self._hysteresis.update(self.model.outputs(x)[:2], x[2:])     # relaxed: F_h = 0
+            self._hysteresis.update(self.model.outputs(x[:4])[:2], x[2:4])   # relaxed: F_h = 0
 
     def step(self, y, u_prev, supply=None) -> UkfOutput:
         """Predict with u_prev (V, the command held since the last sample), update with y (Pa).

@@ -40,6 +40,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Subscribe supply_pressure (sensor_msgs/FluidPressure, Pa abs) and predict with '
               'the latest reading as P_tank; one older than 0.1 s or not finite: the model\'s '
               'P_tank (counted on /diagnostics).'),
+    ParamSpec('bias_states', False, 'bool', '',
+              'Also estimate random-walk offsets b1, b2 (Pa) of the pressure sensors '
+              '(pam_estimator.bias_ukf, default rates; docs/model_extensions.md "Bias states"); '
+              'the published state, pressures and covariance stay the 4 of the paper.'),
     ParamSpec('friction_law', str(FrictionLaw.PROPOSED), 'string', '',
               "Friction law of the filter's model.", choices=FrictionLaw.names()),
     ParamSpec('force_model', str(ForceModel.PROPOSED), 'string', '',
@@ -126,6 +130,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
     from pam_model.parameters import ParameterError, load_parameters
     from pam_model.valve_map import load_valve_map
 
+    from .bias_ukf import DEFAULT_BIAS_STATES
     from .pam_ukf import TUNINGS, PamUkf, UkfTuning
 
     preset = TUNINGS[values['tuning']]
@@ -158,7 +163,8 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(values['initial_state']),
                  nis_gate=values['nis_gate'],
                  y_range=(values['pressure_min'], values['pressure_max']),
-                 extensions=extensions)
+                 extensions=extensions,
+                 bias_states=DEFAULT_BIAS_STATES if values['bias_states'] else None)
     summary = [
         f"model: parameters {values['model_parameters']!r}, valve map {values['valve_map']!r}, "
         f"friction {values['friction_law']!r}, force {values['force_model']!r}, joint "
@@ -168,7 +174,8 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
         f"model extensions: {extensions.describe()}"
         + (f" ({values['model_extensions']})" if values['model_extensions'] else '')
         + (', supply pressure: measured (supply_pressure)' if values['use_supply_pressure']
-           else ''),
+           else '')
+        + (', bias states: sensor offsets b1, b2' if values['bias_states'] else ''),
         f"initial state {values['initial_state']}, NIS gate "
         f"{values['nis_gate'] if values['nis_gate'] > 0 else 'off'}, valid pressures "
         f"[{values['pressure_min']:g}, {values['pressure_max']:g}] Pa",

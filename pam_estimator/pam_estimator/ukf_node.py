@@ -122,9 +122,9 @@ class UkfNode(Node):
         with use_supply_pressure, both paths (a reading, none)."""
         ukf = self.core.ukf
         x, P = ukf.x.copy(), ukf.P.copy()
-        ukf.step(ukf.x[2:], self.core.u_prev)
+        ukf.step(ukf.x[2:4], self.core.u_prev)
         if self.core.use_supply:
-            ukf.step(ukf.x[2:], self.core.u_prev, ukf.model.params.P_tank)
+            ukf.step(ukf.x[2:4], self.core.u_prev, ukf.model.params.P_tank)
         ukf.reset(x, P)
 
     def _on_command(self, msg: ValveCommand) -> None:
@@ -159,10 +159,10 @@ class UkfNode(Node):
         est = JointEstimate()
         est.header.stamp = msg.header.stamp
         est.header.frame_id = self.frame_id
-        est.angle, est.angular_velocity, est.p1, est.p2 = (float(v) for v in out.x)
+        est.angle, est.angular_velocity, est.p1, est.p2 = (float(v) for v in out.x[:4])
         est.torque = float(out.torque)
         est.force1, est.force2 = float(out.force1), float(out.force2)
-        est.covariance = out.P.ravel().tolist()
+        est.covariance = out.P[:4, :4].ravel().tolist()     # without the bias states
         est.torque_variance = float(out.torque_variance)
         est.subsystem = out.subsystem
         est.nis = float(out.nis)
@@ -223,6 +223,9 @@ class UkfNode(Node):
             'joint mode': 'locked' if ukf.model.locked else 'free',
             'model extensions': ukf.extensions.describe(),
         }
+        if ukf.bias_states is not None:
+            values['sensor offsets b1, b2 (kPa)'] = f'{ukf.x[4] / 1e3:.2f}, {ukf.x[5] / 1e3:.2f}'
+
         if core.use_supply:
             values['supply pressure (kPa abs)'] = (core.supply[0] / 1e3 if core.supply
                                                    else float('nan'))

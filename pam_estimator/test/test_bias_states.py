@@ -1,16 +1,24 @@
 """The UKF's bias states (issue 17 item 2, docs/model_extensions.md "Bias states"): off, the
 filter is the one it always was, bit for bit; on, a constant pressure-sensor offset is estimated
 by b1, b2 and the pressure estimates no longer carry it; bad input never gives a non-finite
-output."""
+output; ukf_node's bias_states parameter (a real process on an isolated domain) runs the same
+filter and publishes the paper's 4 states."""
 
+import math
+import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
 
+from pam_common.diagnostics import status_values
+from pam_common.stamps import ns_stamp
+from pam_common.testing import diagnostic_statuses
 from pam_estimator.bias_ukf import DEFAULT_BIAS_STATES, TORQUE_BIAS_STATES, BiasStates
 from pam_estimator.evaluation import run_ukf
 from pam_estimator.pam_ukf import PamUkf
+from pam_interfaces.msg import JointEstimate, Pressures
 from pam_model.effects import Effects
 from pam_model.model import PamModel
 from pam_model.profiles import validation_profile
@@ -97,3 +105,37 @@ def test_bias_states_validation():
                 BiasStates(torque_rate=float('nan')), BiasStates(torque_variance=float('inf'))):
         with pytest.raises(ValueError, match='bias_states'):
             PamUkf(bias_states=bad)
+
+
+def test_ukf_node_bias_states_parameter(node_process, probe):
+    """-p bias_states:=true: the node's estimates are PamUkf's with DEFAULT_BIAS_STATES, number
+    for number, with the paper's 4 states and 4x4 covariance; /diagnostics shows b1, b2."""
+    samples = 60
+    node = node_process('ukf_node', 'pam_estimator', '-p', 'joint_states_rate:=0.0',
+                        '-p', 'bias_states:=true')
+    estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=1000)
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
+    pub = probe.publisher(Pressures, '/pam/pressures')
+    node.wait_for(lambda: pub.get_subscription_count() > 0, 60.0, 'ukf_node subscribed')
+    offline = PamUkf(model=PamModel(), x0=X0, bias_states=DEFAULT_BIAS_STATES)
+    expected = []
+    for k in range(1, samples + 1):
+        y = (4.5e5 + 0.6e5 * math.sin(0.2 * k), 4.5e5 - 0.6e5 * math.sin(0.2 * k))
+        msg = Pressures(sample=k)
+        msg.p1, msg.p2 = y
+        msg.header.stamp = ns_stamp(round((100.0 + k * 1e-3) * 1e9))
+        pub.publish(msg)
+        time.sleep(0.002)
+        out = offline.step(y, (5.5, 5.5))
+        expected.append((*out.x[:4], out.torque))
+    node.wait_for(lambda: len(estimates) >= samples, 30.0, f'{samples} estimates')
+    got = estimates.messages()
+    assert [(m.angle, m.angular_velocity, m.p1, m.p2, m.torque) for m in got] == expected
+    assert all(len(m.covariance) == 16 for m in got)
+    assert 'bias states: sensor offsets b1, b2' in node.stderr + node.stdout
+
+    def offsets():
+        statuses = diagnostic_statuses(diagnostics, 'ukf_node')
+        return status_values(statuses[-1]).get('sensor offsets b1, b2 (kPa)') if statuses else None
+
+    node.wait_for(lambda: offsets() is not None, 10.0, '/diagnostics with b1, b2')
