@@ -5,6 +5,8 @@ output; ukf_node's bias_states parameter (a real process on an isolated domain) 
 filter and publishes the paper's 4 states."""
 
 import math
+import re
+import subprocess
 import time
 from dataclasses import replace
 
@@ -14,7 +16,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 
 from pam_common.diagnostics import status_values
 from pam_common.stamps import ns_stamp
-from pam_common.testing import diagnostic_statuses
+from pam_common.testing import diagnostic_statuses, executable
 from pam_estimator.bias_ukf import DEFAULT_BIAS_STATES, TORQUE_BIAS_STATES, BiasStates
 from pam_estimator.evaluation import run_ukf
 from pam_estimator.pam_ukf import PamUkf
@@ -75,6 +77,21 @@ def test_a_constant_sensor_offset_is_estimated_by_b1_b2(locked):
     error_without = np.abs(without.x[last, 2:] - run.x[last, 2:]).mean(axis=0)
     assert np.all(error_with < 0.25 * np.abs(OFFSET)), error_with
     assert np.all(error_without > 0.75 * np.abs(OFFSET)), error_without
+
+
+def test_pam_evaluate_bias_states(tmp_path):
+    """pam-evaluate --bias-states runs the UKF with them and prints the final b1, b2."""
+    _, run = short_run(True, Effects(sensor_offset=tuple(OFFSET)), seconds=40.0)
+    path = run.save(tmp_path / 'locked.npz')
+    pam_evaluate = executable('pam-evaluate', 'pam_estimator')
+    plain, biased = (subprocess.run([pam_evaluate, str(path), *flag], capture_output=True,
+                                    text=True, timeout=300) for flag in ([], ['--bias-states']))
+    assert plain.returncode == 0 and biased.returncode == 0, plain.stderr + biased.stderr
+    assert 'bias states' not in plain.stdout
+    found = re.search(r'bias states at the end: b1 (\S+) Pa, b2 (\S+) Pa', biased.stdout)
+    assert found, biased.stdout
+    b = np.array([float(found.group(1)), float(found.group(2))])
+    assert np.all(np.abs(b - OFFSET) < 0.2 * np.abs(OFFSET)), b
 
 
 @pytest.mark.parametrize('bias_states', [DEFAULT_BIAS_STATES, TORQUE_BIAS_STATES])
