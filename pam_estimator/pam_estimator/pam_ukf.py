@@ -44,7 +44,7 @@ from pam_model.physics import (
 )
 from pam_model.valve_voltage import sanitise_command
 
-from .bias_ukf import BiasStates, bias_outputs, bias_predict_correct
+from .bias_ukf import BiasStates, torque_forces
 from .unscented import (
     julier_sigma_points,
     julier_weights,
@@ -76,13 +76,13 @@ def propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked):
 @njit(cache=True)
 def hold_locked(x, P, lock_angle):
     """A locked joint: psi = lock_angle, psi_dot = 0, their covariance rows reduced to a tiny
-    diagonal (the torque meter holds the joint)."""
+    diagonal (the torque meter holds the joint). Any state length (the bias states too)."""
     x = x.copy()
     P = P.copy()
     x[0] = lock_angle
     x[1] = 0.0
     for i in range(2):
-        for j in range(N_STATE):
+        for j in range(x.shape[0]):
             P[i, j] = 0.0
             P[j, i] = 0.0
         P[i, i] = LOCKED_VARIANCE
@@ -98,19 +98,27 @@ INFO_FIELDS = ('nis', 'valid', 'accepted', 'repairs', 'force1', 'force2', 'torqu
 def propagate_with_effects(sigmas, alpha1, alpha2, h, p_array, friction_law, force_model, locked,
                            V_d, F_h1, F_h2):
     """propagate() through pam_model.effects_physics.step_with_effects: dead volume V_d (m^3) in
-    eq. (4), hysteresis forces F_h1, F_h2 (N) held over the step, the same for every point."""
+    eq. (4), hysteresis forces F_h1, F_h2 (N) held over the step, the same for every point.
+    With the bias states (7 columns) each point's b_tau adds its torque_forces and the biases
+    are carried unchanged."""
     out = np.empty_like(sigmas)
+    biased = sigmas.shape[1] > N_STATE
     for i in range(sigmas.shape[0]):
+        fh1, fh2 = F_h1, F_h2
+        if biased:
+            fh1, fh2 = torque_forces(sigmas[i, 0], sigmas[i, 6], p_array[0], F_h1, F_h2)
+            out[i, N_STATE:] = sigmas[i, N_STATE:]
         step_with_effects(sigmas[i], alpha1, alpha2, h, p_array, friction_law, force_model,
-                          locked, V_d, F_h1, F_h2, out[i])
+                          locked, V_d, fh1, fh2, out[i])
     return out
 
 
 @njit(cache=True)
 def correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info):
     """Steps 2-4 of the module doc from the propagated sigma points: the posterior (x, P);
-    info receives nis, valid, accepted and the repairs of this part."""
-    W = julier_weights(N_STATE, KAPPA)
+    info receives nis, valid, accepted and the repairs of this part. With the bias states
+    (7 columns) g(x) = [P1 + b1, P2 + b2]."""
+    W = julier_weights(sigmas_f.shape[1], KAPPA)
     x_prior, P_prior = unscented_transform(sigmas_f, W, Q)
     P_prior = symmetrise(P_prior)
     if locked:
@@ -123,6 +131,8 @@ def correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info)
     x_post, P_post = x_prior, P_prior
     if valid:
         Y = sigmas_p[:, 2:4].copy()
+        if sigmas_p.shape[1] > N_STATE:
+            Y += sigmas_p[:, 4:6]
         x_post, P_post, nis, accepted = measurement_update(x_prior, P_prior, sigmas_p, Y, W, R,
                                                            y, nis_gate)
         if not np.isfinite(nis):
@@ -141,24 +151,32 @@ def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model
                      F_h2, info):
     """Step 5 at the posterior, with the hysteresis forces F_h1, F_h2 (N; 0 in the paper's
     model) in eq. (6): forces, torque, its variance, sigma into info; x, P become the posterior
-    if it is finite (info[9])."""
+    if it is finite (info[9]). With the bias states (7 entries) the torque gains b_tau."""
     p = p_array[0]
-    W = julier_weights(N_STATE, KAPPA)
+    biased = x_post.shape[0] > N_STATE
+    W = julier_weights(x_post.shape[0], KAPPA)
     F1, F2 = forces_with_hysteresis(x_post[0], x_post[2], x_post[3], p, force_model, F_h1, F_h2)
     tau = joint_torque(x_post[0], F1, F2, p)
+    if biased:
+        tau += x_post[6]
     sigmas_o, rep3 = julier_sigma_points(x_post, P_post, KAPPA)
     taus = np.empty(sigmas_o.shape[0])
     for i in range(sigmas_o.shape[0]):
         f1, f2 = forces_with_hysteresis(sigmas_o[i, 0], sigmas_o[i, 2], sigmas_o[i, 3], p,
                                         force_model, F_h1, F_h2)
         taus[i] = joint_torque(sigmas_o[i, 0], f1, f2, p)
+        if biased:
+            taus[i] += sigmas_o[i, 6]
     tau_mean = W @ taus
     tau_variance = W @ ((taus - tau_mean) ** 2)
     if locked:
         sliding = False
     else:
+        fh1, fh2 = F_h1, F_h2
+        if biased:
+            fh1, fh2 = torque_forces(x_post[0], x_post[6], p, F_h1, F_h2)
         _, sliding = friction_with_hysteresis(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
-                                              friction_law, force_model, F_h1, F_h2)
+                                              friction_law, force_model, fh1, fh2)
     sigma = subsystem_index(sliding, x_post[2], x_post[3], p)
     finite = np.all(np.isfinite(x_post)) and np.all(np.isfinite(P_post)) and np.isfinite(
         tau) and np.isfinite(tau_variance)
@@ -394,17 +412,14 @@ class PamUkf:
             y = (y - self._sensor_offset) / self._sensor_gain
         else:
             y = np.full(2, np.nan)                  # a faulty raw reading: no update
-        biased = self.bias_states is not None
-        predict_correct = bias_predict_correct if biased else predict_correct_with_effects
-        x_post, P_post, F1, F2 = predict_correct(
+        x_post, P_post, F1, F2 = predict_correct_with_effects(
             self.x, self.P, alpha1, alpha2, y, self._Q, self._R, m.h, self._record,
             m.friction_code, m.force_code, m.locked, self.lock_angle, self.nis_gate, info,
             e.dead_volume, self.F_h[0], self.F_h[1])
         F_h = self.F_h
         if self._hysteresis is not None and np.all(np.isfinite(x_post)):
             F_h = self._hysteresis.update((F1, F2), x_post[2:4])
-        (bias_outputs if biased else estimate_outputs)(
-            self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code, m.force_code,
-            m.locked, F_h[0], F_h[1], info)
+        estimate_outputs(self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code,
+                         m.force_code, m.locked, F_h[0], F_h[1], info)
         if info[9]:
             self.F_h = F_h
