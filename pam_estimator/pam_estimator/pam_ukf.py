@@ -15,7 +15,8 @@ A Cholesky factorisation that fails falls back to an eigenvalue clip (counted). 
 angle is held at the lock angle with a tiny variance, psi_dot = 0.
 The whole step is one compiled numba kernel (see the README for why). With model extensions or
 a measured supply pressure (docs/model_extensions.md) it is two kernels around the valve lag and
-the hysteresis memory (numpy, per sample); without, ukf_step as it always was.
+the hysteresis memory (numpy, per sample); without, ukf_step as it always was. The option
+bias_states (bias_ukf.py) takes the two kernels with a 7-state x (sensor offsets, torque bias).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from pam_model.physics import (
 )
 from pam_model.valve_voltage import sanitise_command
 
-from .bias_ukf import BiasStates, torque_forces
+from .bias_ukf import N_BIASED, BiasStates, torque_forces
 from .unscented import (
     julier_sigma_points,
     julier_weights,
@@ -325,9 +326,9 @@ class PamUkf:
         x = np.array(self.x0 if x0 is None else x0, dtype=float)
         P = np.asarray(self.tuning.P0 if P0 is None else P0, dtype=float)
         P = np.diag(P) if P.ndim == 1 else P.copy()
-        n = 4
+        n = N_STATE
         if self.bias_states is not None:
-            n = 7
+            n = N_BIASED
             if x.shape == (4,):
                 x = np.concatenate([x, np.zeros(3)])
             if P.shape == (4, 4):
