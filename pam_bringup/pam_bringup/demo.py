@@ -47,9 +47,9 @@ from .demo_workflow import (
     DemoPaths,
     comparison_lines,
     demo_summary,
-    write_json,
     write_run_params,
 )
+from .json_file import write_json
 from .stack import PACKAGE, default_params_file
 from .supervisor import Child, Output, Supervisor
 

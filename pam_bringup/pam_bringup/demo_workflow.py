@@ -11,7 +11,6 @@ the nominal model beside the identified one for comparison.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -119,11 +118,9 @@ def demo_summary(scenario: str, campaign: str, reports: dict, identification: di
             **{run: reports.get(run) for run in RUNS}}
 
 
-def write_json(path: Path, data: dict) -> None:
-    """JSON to path via a temporary sibling and a rename."""
-    tmp = path.with_name(path.name + '.tmp')
-    tmp.write_text(json.dumps(data, indent=2) + '\n')
-    os.replace(tmp, path)
+def settling(seconds) -> str:
+    """A settling time for the table: 'never' for a step that never settled (null, inf)."""
+    return 'never' if seconds is None or seconds == float('inf') else f'{seconds:.2f} s'
 
 
 def comparison_lines(reports: dict) -> list[str]:
@@ -139,7 +136,7 @@ def comparison_lines(reports: dict) -> list[str]:
         whole = r['estimation'].get('whole', {})
         late = r['estimation'].get('after_transient', {})
         rows.append(f'{run:<12}{r["worst_steady_state_error_pct"]:>14.2f} %'
-                    f'{r["worst_settling_time_s"]:>14.2f} s'
+                    f'{settling(r["worst_settling_time_s"]):>16}'
                     f'{whole.get("I", nan):>10.3f} deg{whole.get("M", nan):>6.2f} deg'
                     f'{whole.get("Q_pct", nan):>7.2f} %{late.get("Q_pct", nan):>17.2f} %')
     return rows

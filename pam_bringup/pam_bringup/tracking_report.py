@@ -27,6 +27,8 @@ from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, REFER
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
+from .json_file import write_json
+
 NODE_NAME = 'tracking_report'
 PARAMETERS = (
     ParamSpec('duration', 64.0, 'double', 's', 'How long to record after the start (see start).',
@@ -188,7 +190,7 @@ class TrackingReport(Node):
                                  commands, unit, self.values['plot'], self.values['title'])
             print(f'  figure: {path}', flush=True)
         if self.values['summary']:
-            path = write_summary(self.values['summary'], report_summary(
+            path = write_json(self.values['summary'], report_summary(
                 'angle' if angle else 'torque', unit, t, report, scale, estimation,
                 self.values['transient']))
             print(f'  summary: {path}', flush=True)
@@ -198,7 +200,8 @@ class TrackingReport(Node):
 def report_summary(mode: str, unit: str, t, report, scale: float, estimation: dict,
                    transient: float) -> dict:
     """The report's figures as plain data (the `summary` JSON): errors in % of range, times in
-    s, estimation I / M in `unit`, Q in % of the measured range."""
+    s (inf for a step that never settled: null in the file), estimation I / M in `unit`, Q in %
+    of the measured range."""
     return {
         'mode': mode, 'unit': unit, 'recorded_s': float(t[-1]), 'samples': len(t),
         'steps': [{'t_start_s': s.t_start, 'reference': s.reference * scale,
@@ -210,19 +213,6 @@ def report_summary(mode: str, unit: str, t, report, scale: float, estimation: di
                        for key, m in estimation.items()},
         'transient_s': transient,
     }
-
-
-def write_summary(path, summary: dict) -> str:
-    """Write summary as JSON to path (temporary sibling, then renamed); returns the path."""
-    import json
-    import os
-    path = os.fspath(path)
-    tmp = f'{path}.tmp'
-    with open(tmp, 'w') as f:
-        json.dump(summary, f, indent=2, default=float)
-        f.write('\n')
-    os.replace(tmp, path)
-    return path
 
 
 def plot_tracking(t, reference, measured, estimate, commands, unit, path,

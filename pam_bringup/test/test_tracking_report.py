@@ -14,12 +14,20 @@ from pam_common.testing import wait_until
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference
 
 
-def test_a_run_without_a_complete_step_reports_so(node_process, probe):
-    report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=1.5')
+def started_report(node_process, probe, *params):
+    """tracking_report with -p params, and the probe's reference and joint_measured publishers
+    once the report has subscribed to both: (report, references, truth)."""
+    args = [a for param in params for a in ('-p', param)]
+    report = node_process('tracking_report', 'pam_bringup', *args)
     references = probe.publisher(Reference, '/pam/reference')
     truth = probe.publisher(JointMeasurement, '/pam/joint_measured')
     assert wait_until(lambda: references.get_subscription_count() > 0
                       and truth.get_subscription_count() > 0, 60.0), report.stderr
+    return report, references, truth
+
+
+def test_a_run_without_a_complete_step_reports_so(node_process, probe):
+    report, references, truth = started_report(node_process, probe, 'duration:=1.5')
     k = 0
     end = time.monotonic() + 60.0
     while report.alive() and time.monotonic() < end:    # 1.5 s of stamps, one reference: < 2 s
@@ -74,12 +82,8 @@ def test_the_estimation_error_is_printed_whole_and_after_the_transient(node_proc
 def test_start_at_the_first_step_records_whole_holds(node_process, probe):
     """start:=step: the recording begins at the first change of the reference (1 s into the
     feed), not at the first reference: 2 s recorded are the hold at 0.2 from its first sample."""
-    report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=2.0',
-                          '-p', 'start:=step', '-p', 'transient:=0.0')
-    references = probe.publisher(Reference, '/pam/reference')
-    truth = probe.publisher(JointMeasurement, '/pam/joint_measured')
-    assert wait_until(lambda: references.get_subscription_count() > 0
-                      and truth.get_subscription_count() > 0, 60.0), report.stderr
+    report, references, truth = started_report(node_process, probe, 'duration:=2.0',
+                                               'start:=step', 'transient:=0.0')
     k = 0
     end = time.monotonic() + 60.0
     while report.alive() and time.monotonic() < end and k <= 3500:
