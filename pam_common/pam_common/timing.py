@@ -4,16 +4,18 @@ DeadlineSchedule keeps absolute deadlines start + n * period, so sleeping to eac
 accumulate drift. A sample taken more than one period after its deadline is a *late step*.
 
 Policy when deadlines have been missed (the loop woke up late, e.g. on a loaded machine): the
-overdue samples are CAUGHT UP, taken back to back without sleeping, as long as no more than
-`max_catch_up` periods are overdue; the simulated plant then keeps pace with the wall clock
-(its time never drifts behind), at the price of short bursts. A longer stall (more than
-`max_catch_up` periods overdue) is not replayed as a long burst: the loop SKIPS AHEAD to the next
-future deadline (keeping the phase of the schedule) and counts the skipped periods; the plant's
-time then slips behind the wall clock by those periods, as if it had paused. max_catch_up = 0
-always skips ahead. Every sample is exactly one model step after the previous one either way.
+overdue samples are CAUGHT UP, taken back to back without sleeping. With `max_catch_up=None`
+(the simulated rig, sim_node and pam-emulator: a plant never pauses) every overdue deadline is
+caught up, however long the stall: the plant's time stays on the wall clock, the command of a
+late controller is simply held over the stall (zero-order hold, as real valves hold it), and
+the stall itself is counted and reported as what it is, a loop that was not real time. With an
+integer `max_catch_up`, a longer backlog is not replayed: the schedule SKIPS AHEAD to the next
+future deadline (keeping the phase) and counts the skipped periods; max_catch_up = 0 always
+skips ahead. Every sample is exactly one model step after the previous one either way.
 
-RateStatistics collects, per reporting window, the number of samples, late steps, skipped periods
-and the maximum lateness, and computes the achieved rate over the window.
+RateStatistics collects, per reporting window and since the start (or reset_totals()), the
+number of samples, late steps, skipped periods and the maximum lateness (the worst stall), and
+computes the achieved rate over the window.
 """
 
 from __future__ import annotations
@@ -27,14 +29,17 @@ class DeadlineSchedule:
     """Absolute deadlines of a loop with period `period` (s), the first one at `first` (s).
 
     Times are plain floats from one monotonic clock (e.g. time.monotonic()). Up to
-    `max_catch_up` overdue periods are caught up; beyond that the schedule skips ahead.
+    `max_catch_up` overdue periods are caught up; beyond that the schedule skips ahead; None:
+    every overdue period is caught up (never skip).
     """
 
-    def __init__(self, period: float, first: float, max_catch_up: int = 10):
+    def __init__(self, period: float, first: float, max_catch_up: int | None = 10):
         if not (math.isfinite(period) and period > 0.0):
             raise ValueError(f'period must be > 0 s, got {period!r}')
-        if not (isinstance(max_catch_up, int) and max_catch_up >= 0):
-            raise ValueError(f'max_catch_up must be an integer >= 0, got {max_catch_up!r}')
+        if max_catch_up is not None and not (isinstance(max_catch_up, int)
+                                             and max_catch_up >= 0):
+            raise ValueError(f'max_catch_up must be None or an integer >= 0, got '
+                             f'{max_catch_up!r}')
         self.period = float(period)
         self.max_catch_up = max_catch_up
         self._first = float(first)
@@ -61,7 +66,7 @@ class DeadlineSchedule:
         (the next deadline is then in the future).
         """
         overdue = self.overdue(now)
-        if overdue > self.max_catch_up:
+        if self.max_catch_up is not None and overdue > self.max_catch_up:
             self._n += overdue + 1
             while self.deadline <= now:  # floating-point edge: never land on a past deadline
                 self._n += 1
@@ -107,6 +112,14 @@ class RateStatistics:
         """Start the window afresh at `start` (e.g. when the loop really starts); keeps totals."""
         with self._lock:
             self._window_start = float(start)
+
+    def reset_totals(self) -> None:
+        """Start the totals afresh (a node's ~/reset_statistics); the window goes on."""
+        with self._lock:
+            self._total_samples = 0
+            self._total_late = 0
+            self._total_skipped = 0
+            self._max_lateness_total = 0.0
 
     def record(self, lateness: float, skipped: int = 0) -> bool:
         """One sample taken `lateness` s after its deadline; returns True if it was a late step."""

@@ -51,6 +51,32 @@ def test_zero_catch_up_always_skips():
     assert schedule.deadline == pytest.approx(3 * P)
 
 
+def test_never_skip_catches_up_every_overdue_period():
+    """The simulated rig's policy (max_catch_up=None): a stall of 500 periods is replayed, the
+    plant never pauses."""
+    schedule = DeadlineSchedule(P, 10.0, max_catch_up=None)
+    now = 10.0 + 500.4 * P
+    served = 0
+    while schedule.deadline <= now:
+        assert schedule.advance(now) == 0
+        served += 1
+    assert served == 501
+    assert schedule.deadline == pytest.approx(10.0 + 501 * P)
+
+
+def test_totals_reset_keeps_the_window():
+    stats = RateStatistics(P, 0.0)
+    stats.record(5 * P)
+    stats.record(0.0)
+    stats.reset_totals()
+    stats.record(2 * P)
+    report = stats.window(1.0)
+    assert (report.samples, report.late_steps) == (3, 2)
+    assert (report.total_samples, report.total_late_steps) == (1, 1)
+    assert report.max_lateness_total == pytest.approx(2 * P)
+    assert report.max_lateness == pytest.approx(5 * P)
+
+
 def test_overdue_count():
     schedule = DeadlineSchedule(P, 0.0)
     assert schedule.overdue(-1.0) == 0
@@ -62,7 +88,7 @@ def test_schedule_rejects_bad_period():
     for period in (0.0, -1.0, math.nan, math.inf):
         with pytest.raises(ValueError):
             DeadlineSchedule(period, 0.0)
-    for bad in (-1, 1.5, None):
+    for bad in (-1, 1.5, '3'):
         with pytest.raises(ValueError):
             DeadlineSchedule(P, 0.0, max_catch_up=bad)
 

@@ -36,25 +36,26 @@ with rclpy's best-effort /clock subscription).
 Timing 'realtime': a dedicated thread (not an rclpy timer) sleeps to absolute deadlines
 start + n/rate on the monotonic clock, so there is no drift. At each deadline it steps the model
 once with the command held at that moment (h = 1/rate), reads the sensors and publishes, stamped
-with the node clock now (system time; this node never runs on simulated time). A sample taken
-more than one period after its deadline is a *late step*. When the thread wakes up late, up to
-max_catch_up overdue samples are CAUGHT UP back to back (the plant keeps pace with the wall clock;
-stamps within such a burst are closer than 1/rate), and a longer stall is SKIPPED: the loop jumps
-to the next future deadline and the plant's time slips behind the wall clock by the skipped
-periods (see pam_common.timing). Either way every published sample is exactly one model step h
-after the previous one: consumers should step their models by h, not by stamp differences.
-Late steps, skipped periods, the maximum lateness and the achieved rate (over the last
-diagnostics window) are reported on /diagnostics. Subscriptions and timers are spun by
+with the deadline's time on the node clock (system time; this node never runs on simulated
+time): sample k is stamped start + k/rate, whenever it left. The simulated rig behaves like a
+rig: its plant follows the wall clock and NEVER PAUSES. A controller that answers late finds the
+valves holding its last command (zero-order hold) while the joint moves on. If the sampling
+thread itself wakes up late (the machine is overloaded), every overdue sample is CAUGHT UP back
+to back, each one model step h after the previous one with the command held at that moment, so
+the plant's time stays on the wall clock; those samples are *late samples* (published more than
+one period after their deadline), and the longest lateness is the *worst stall*. A run with late
+samples was not real time: the rig reports it (/diagnostics) and tracking_report / pam-demo mark
+such a run INVALID (pam_common.run_health), never as a result. Consumers step their models by h,
+not by stamp differences. Subscriptions and timers are spun by
 rclpy.experimental.EventsExecutor (SingleThreadedExecutor if that is unavailable), in bounded
 slices (see pam_common.executors). The real-time knobs thread_priority (SCHED_FIFO), cpu_affinity
 and lock_memory apply to the executor thread and the sampler thread (sim_node_sampler), each
 logged when granted and a warning when refused (pam_common.realtime_knobs, docs/realtime.md).
 
 Sample counter (Pressures.sample): k + 1 for the sample after k model steps, in both timings. A
-re-published lockstep sample keeps its counter (a repeat); a realtime period SKIPPED after a
-stall is no sample (the plant did not step: it is counted as a skipped period, not as a gap); a
-non-finite sample suppressed leaves a gap (a sample the rig took and nobody got). So a gap seen
-downstream is a sample lost on its way.
+re-published lockstep sample keeps its counter (a repeat); a non-finite sample suppressed leaves
+a gap (a sample the rig took and nobody got). So a gap seen downstream is a sample lost on its
+way.
 
 Timing 'lockstep': sample k is stamped with simulated time t_k = k/rate. The plant steps k -> k+1
 only when a command for step k arrives: a ValveCommand whose header.stamp >= t_k (a zero stamp
@@ -71,17 +72,18 @@ input and never publishes a non-finite sample.
 
 /diagnostics: one DiagnosticStatus '/pam/sim_node: simulated rig' (the node's fully qualified
 name; hardware_id the parameter, by default the namespace) with the timing, target and
-achieved rate, late steps, skipped periods, max lateness (ms), samples published, last sample
-counter, commands received, non-finite / out-of-range commands, past commands ignored, last
-command u1/u2 (V, as applied), joint mode and plant set; in realtime, the sample -> command
-latency at the rig (pam_common.latency: each command's arrival minus the stamp of the sample it
-answers, p50/p99/p99.9/max in ms, and the commands that came after the next sample was taken),
-since the start or the last `~/reset_statistics` call (std_srvs/Trigger); log lines suppressed
+achieved rate, late steps and max lateness (ms) of the last window, samples published, last
+sample counter, commands received, non-finite / out-of-range commands, past commands ignored,
+last command u1/u2 (V, as applied), joint mode and plant set; in realtime, since the start or the
+last `~/reset_statistics` call (std_srvs/Trigger): 'samples taken', 'late samples', 'worst stall
+(ms)' (the rig's own timing) and the sample -> command latency at the rig (pam_common.latency:
+each command's arrival minus the stamp of the sample it answers, p50/p99/p99.9/max in ms, and
+the commands that came after the next sample was taken); log lines suppressed
 (the warnings on the sample and command paths are throttled to one a second each, the lines left
 out counted, pam_common.throttled_log). Level ERROR if the sampling thread failed or a
 non-finite sample was ever suppressed; WARN if, in the last window, bad or past commands
-arrived, or (realtime) the achieved rate was off by more than 5 % or more than 5 % of the samples
-were late steps; OK otherwise.
+arrived, or (realtime) the achieved rate was off by more than 5 % or any sample was late (the
+loop was not real time); OK otherwise.
 
 At DEBUG (`--ros-args --log-level pam.sim_node:=debug`): the valve command applied, when it
 changes markedly: the first command, then one that differs from the last such line's by more than
@@ -131,7 +133,7 @@ from pam_model.valve_voltage import SANITISE_RULE
 NODE_NAME = 'sim_node'
 DIAGNOSTICS_PERIOD = 1.0   # s
 RATE_TOLERANCE = 0.05      # realtime: WARN when the achieved rate is off by more than this
-LATE_TOLERANCE = 0.05      # realtime: WARN when more than this fraction of a window is late
+LATE_TOLERANCE = 0.0       # realtime: WARN when more than this fraction of a window is late
 LOG_THROTTLE = 1.0         # s between two log lines about bad input
 COMMAND_STEP_DEBUG = 0.5   # V: a DEBUG line when the applied command moves this far
 
@@ -210,8 +212,14 @@ class SimNode(Node):
                 self.create_publisher(FluidPressure, SUPPLY_PRESSURE, SAMPLE_QOS), hold=True)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
-        self.create_service(Trigger, '~/reset_statistics',
-                            self._timing.reset_callback(self.get_logger()))
+        reset_latency = self._timing.reset_callback(self.get_logger())
+
+        def reset_statistics(request, response):    # the rig's timing totals and the latency
+            self._stats.reset_totals()
+            response = reset_latency(request, response)
+            response.message = 'sample timing and ' + response.message
+            return response
+        self.create_service(Trigger, '~/reset_statistics', reset_statistics)
         self._diagnostics = DiagnosticsPublisher(self, 'simulated rig', values['hardware_id'],
                                                  self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
@@ -308,9 +316,9 @@ class SimNode(Node):
     def _realtime_loop(self) -> None:
         self._realtime.apply_to_thread('sim_node_sampler')
         period = 1.0 / self.config.rate
-        clock = self.get_clock()
         start = time.monotonic()
-        schedule = DeadlineSchedule(period, start, self.config.values['max_catch_up'])
+        start_ns = self.get_clock().now().nanoseconds   # deadline 0 on the node clock
+        schedule = DeadlineSchedule(period, start, max_catch_up=None)   # the plant never pauses
         self._stats.restart(start)
         first = True
         try:
@@ -319,16 +327,15 @@ class SimNode(Node):
                 if delay > 0.0:
                     time.sleep(delay)
                 now = time.monotonic()
-                t_ns = clock.now().nanoseconds
+                t_ns = start_ns + round((schedule.deadline - start) * 1e9)
                 with self._lock:
                     if not first:
                         self._rig.step()
                     first = False
                     messages = self._take_sample(t_ns)
                 self._publish(messages)
-                lateness = schedule.lateness(now)
-                skipped = schedule.advance(now)
-                self._stats.record(lateness, skipped)
+                self._stats.record(schedule.lateness(now))
+                schedule.advance(now)
         except Exception as exc:  # noqa: BLE001 - report, do not die silently
             if self._stop.is_set() or not rclpy.ok(context=self.context):
                 return  # shutting down: the publishers went away under us
@@ -423,11 +430,8 @@ class SimNode(Node):
                 'timing': self.config.timing,
                 'rate target (Hz)': self.config.rate,
                 'achieved rate (Hz)': window.achieved_rate,
-                'late steps': window.total_late_steps,
                 'late steps (last window)': window.late_steps,
-                'skipped periods': window.total_skipped_periods,
                 'max lateness (ms)': window.max_lateness * 1e3,
-                'max lateness since start (ms)': window.max_lateness_total * 1e3,
                 'samples published': self._samples_published,
                 'simulated time (s)': rig.t,
                 'commands received': self._commands_received,
@@ -447,6 +451,9 @@ class SimNode(Node):
             if self._lockstep:
                 values['republished samples'] = self._republished
             else:       # since the start or ~/reset_statistics
+                values.update({'samples taken': window.total_samples,
+                               'late samples': window.total_late_steps,
+                               'worst stall (ms)': window.max_lateness_total * 1e3})
                 values.update(self._timing.histogram.summary())
             new_bad = bad - self._reported['bad']
             new_past = self._past_commands - self._reported['past']
@@ -476,7 +483,8 @@ class SimNode(Node):
                 and window.late_steps > LATE_TOLERANCE * window.samples):
             level = max(level, WARN)
             problems.append(f'{window.late_steps} of {window.samples} samples late by more than '
-                            f'a period (max {window.max_lateness * 1e3:.2f} ms)')
+                            f'a period (max {window.max_lateness * 1e3:.2f} ms): not real time, '
+                            'the plant went on with the held command')
         if problems:
             message = '; '.join(problems)
         elif self._lockstep:
