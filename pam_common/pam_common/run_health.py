@@ -1,0 +1,212 @@
+"""Whether a real-time run was real time: the judgement a report makes before printing figures.
+
+A closed-loop run on the 1 kHz rig (sim_node, or driver_node on the real rig) gives figures
+(steady-state error, settling, estimation error) that mean something only if the loop ran in
+time. On an overloaded machine the rig's sampling thread wakes up late, the controller answers
+late, the report loses samples, and the figures describe a slower, degraded loop, not the
+controller. judge_run() looks at the rig's own counters (its latest /diagnostics status, counted
+since its start or its `~/reset_statistics` call) and at the samples the report received, and
+says VALID or INVALID with one reason per broken threshold. No ROS here: the caller passes the
+status' key/values (pam_common.diagnostics.status_values) and the two counts.
+
+The thresholds (HealthLimits, SI units: seconds; fractions are plain ratios 0..1):
+
+- max_late_fraction 0.01: the fraction of the rig's samples taken more than one period after
+  their deadline ('late samples' / 'samples taken'). A late sample is taken with the command
+  held since the previous one while the plant moved on; one in a hundred is the most a 1 kHz
+  loop whose figures are quoted may have.
+- max_worst_stall 0.020 s: the longest lateness of the rig's sampling ('worst stall (ms)'). At
+  1 kHz a stall of 20 ms is 20 samples held at the old command, a fifth of the valves' own time
+  constant: past that the loop is open for a visible while.
+- max_latency_p99 0.002 s: the 99th percentile of the sample -> command latency at the rig (the
+  command's arrival minus the stamp of the sample it answers, 'latency p99 (ms)'). Above two
+  periods the controller works on stale estimates most of the time, and the loop has a delay
+  the batch analysis and the gains do not assume.
+- max_late_command_fraction 0.05: the fraction of the timed commands that arrived after the rig
+  had taken its next sample ('commands after the next sample' / 'commands timed'): each of those
+  is one period applied with the previous command.
+- max_lost_fraction 0.01: the fraction of the samples the rig sent during the record (from the
+  sample counters) that the report did not receive: the report's figures would be computed over
+  a thinned record, and lost samples mean the middleware (and so the loop) was starved too.
+
+A key the rig does not publish is not judged, and the notes say so: driver_node publishes the
+latency keys only ('commands timed', 'commands after the next sample', 'latency p50/p99/p99.9/
+max (ms)'), not the sample-timing ones ('samples taken', 'late samples', 'worst stall (ms)').
+No rig status at all (rig None) makes the run INVALID: its real-time health is unknown.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+
+#: the rig's /diagnostics keys judge_run reads
+SAMPLES_TAKEN = 'samples taken'
+LATE_SAMPLES = 'late samples'
+WORST_STALL_MS = 'worst stall (ms)'
+COMMANDS_TIMED = 'commands timed'
+COMMANDS_LATE = 'commands after the next sample'
+LATENCY_P50_MS = 'latency p50 (ms)'
+LATENCY_P99_MS = 'latency p99 (ms)'
+LATENCY_MAX_MS = 'latency max (ms)'
+NO_RIG = 'no /diagnostics from the rig: real-time health unknown'
+
+
+@dataclass(frozen=True)
+class HealthLimits:
+    """The thresholds of a valid run (module docstring: why each one)."""
+
+    max_late_fraction: float = 0.01          # late rig samples / samples taken
+    max_worst_stall: float = 0.020           # s: 20 periods at 1 kHz
+    max_latency_p99: float = 0.002           # s: sample -> command at the rig, 2 periods
+    max_late_command_fraction: float = 0.05  # commands after the next sample / commands timed
+    max_lost_fraction: float = 0.01          # samples lost at the report / samples sent
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0.0:
+                raise ValueError(f'HealthLimits.{f.name} must be a finite number >= 0, '
+                                 f'got {value!r}')
+            if f.name.endswith('fraction') and value > 1.0:
+                raise ValueError(f'HealthLimits.{f.name} is a fraction in 0..1, got {value!r}')
+
+
+def number(values: Mapping | None, key: str) -> float:
+    """values[key] as a float; nan when missing, 'n/a' or not a number."""
+    if values is None:
+        return math.nan
+    value = values.get(key)
+    if isinstance(value, bool) or value is None:
+        return math.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _known(x: float) -> bool:
+    return math.isfinite(x)
+
+
+@dataclass(frozen=True)
+class RunHealth:
+    """The figures of a run's real-time health and the judgement. Times in s; nan: not known."""
+
+    samples_sent: int             # samples the rig sent during the record (sample counters)
+    samples_received: int         # samples the report received
+    samples_lost: int
+    samples_taken: float          # by the rig, since its start or ~/reset_statistics
+    late_samples: float
+    worst_stall: float            # s
+    latency_p50: float            # s, sample -> command at the rig
+    latency_p99: float            # s
+    latency_max: float            # s
+    commands_timed: float
+    late_commands: float          # commands that arrived after the rig's next sample
+    valid: bool
+    reasons: tuple[str, ...] = ()  # one per broken threshold, with the figure and the limit
+    notes: tuple[str, ...] = ()    # what could not be judged (not a reason to fail)
+
+    def as_dict(self) -> dict:
+        """Plain data for strict JSON: nan -> None, counts as ints, tuples as lists."""
+        out = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, tuple):
+                value = list(value)
+            elif isinstance(value, float):
+                value = None if not math.isfinite(value) else (
+                    int(value) if f.name in _COUNTS and value.is_integer() else value)
+            out[f.name] = value
+        return out
+
+    def lines(self) -> list[str]:
+        """Human-readable: the headline (figures and VALID / INVALID: reasons), then the notes."""
+        parts = [f'real-time health: {self.samples_received} of {self.samples_sent} samples '
+                 f'received ({self.samples_lost} lost)']
+        if _known(self.late_samples) or _known(self.worst_stall):
+            parts.append(f'rig: {_count(self.late_samples)} late samples, worst stall '
+                         f'{_ms(self.worst_stall)} ms')
+        headline = ', '.join(parts)
+        if _known(self.latency_p99):
+            late = (100.0 * self.late_commands / self.commands_timed
+                    if _known(self.late_commands) and self.commands_timed > 0 else math.nan)
+            headline += (f'; sample -> command at the rig p50 {_ms(self.latency_p50)} / p99 '
+                         f'{_ms(self.latency_p99)} / max {_ms(self.latency_max)} ms, '
+                         f'{"n/a" if not _known(late) else f"{late:.1f}"} % after the next '
+                         'sample')
+        headline += ': VALID' if self.valid else ': INVALID: ' + '; '.join(self.reasons)
+        return [headline] + [f'  (not judged: {note})' for note in self.notes]
+
+
+_COUNTS = ('samples_taken', 'late_samples', 'commands_timed', 'late_commands')
+
+
+def _ms(seconds: float) -> str:
+    if not _known(seconds):
+        return 'n/a'
+    ms = seconds * 1e3
+    return f'{ms:.2f}' if ms < 1.0 else f'{ms:.1f}'
+
+
+def _count(x: float) -> str:
+    return 'n/a' if not _known(x) else f'{x:.0f}'
+
+
+def judge_run(rig: Mapping | None, received: int, expected: int,
+              limits: HealthLimits = HealthLimits()) -> RunHealth:
+    """The health of a run: `rig` the key/values of the rig node's latest /diagnostics status
+    (strings or numbers; None: no status arrived), `expected` the samples the rig sent during
+    the record (from the sample counters), `received` those the report got."""
+    received, expected = int(received), int(expected)
+    lost = max(expected - received, 0)
+    taken, late = number(rig, SAMPLES_TAKEN), number(rig, LATE_SAMPLES)
+    stall = number(rig, WORST_STALL_MS) * 1e-3
+    p50, p99 = number(rig, LATENCY_P50_MS) * 1e-3, number(rig, LATENCY_P99_MS) * 1e-3
+    worst_latency = number(rig, LATENCY_MAX_MS) * 1e-3
+    timed, late_commands = number(rig, COMMANDS_TIMED), number(rig, COMMANDS_LATE)
+    reasons, notes = [], []
+    if rig is None:
+        reasons.append(NO_RIG)
+    if expected > 0:
+        if lost / expected > limits.max_lost_fraction:
+            reasons.append(f'{lost} of {expected} samples lost at the report '
+                           f'({100.0 * lost / expected:.2f} % > '
+                           f'{100.0 * limits.max_lost_fraction:g} %)')
+    else:
+        notes.append('no sample counter received: samples lost at the report')
+    if rig is not None:
+        if _known(taken) and taken > 0 and _known(late):
+            if late / taken > limits.max_late_fraction:
+                reasons.append(f'{late:.0f} of {taken:.0f} rig samples late '
+                               f'({100.0 * late / taken:.2f} % > '
+                               f'{100.0 * limits.max_late_fraction:g} %)')
+        else:
+            notes.append("the rig publishes no 'samples taken' / 'late samples': late samples")
+        if _known(stall):
+            if stall > limits.max_worst_stall:
+                reasons.append(f'worst stall {_ms(stall)} ms > '
+                               f'{limits.max_worst_stall * 1e3:g} ms')
+        else:
+            notes.append("the rig publishes no 'worst stall (ms)': worst stall")
+        if _known(p99):
+            if p99 > limits.max_latency_p99:
+                reasons.append(f'sample -> command latency p99 {_ms(p99)} ms > '
+                               f'{limits.max_latency_p99 * 1e3:g} ms')
+        else:
+            notes.append('no command latency at the rig: sample -> command latency')
+        if _known(timed) and timed > 0 and _known(late_commands):
+            if late_commands / timed > limits.max_late_command_fraction:
+                reasons.append(f'{late_commands:.0f} of {timed:.0f} commands after the next '
+                               f'sample ({100.0 * late_commands / timed:.1f} % > '
+                               f'{100.0 * limits.max_late_command_fraction:g} %)')
+        else:
+            notes.append('no command timed at the rig: commands after the next sample')
+    return RunHealth(samples_sent=expected, samples_received=received, samples_lost=lost,
+                     samples_taken=taken, late_samples=late, worst_stall=stall,
+                     latency_p50=p50, latency_p99=p99, latency_max=worst_latency,
+                     commands_timed=timed, late_commands=late_commands,
+                     valid=not reasons, reasons=tuple(reasons), notes=tuple(notes))
