@@ -6,22 +6,43 @@ prints per reference step: the reference, the steady-state error against the MEA
 of the paper's 40 deg / 4 N m range), the settling time; the estimation error I / M / Q over the
 whole record and after the initial `transient` (default 1 s); and writes a PNG like the paper's
 Fig. 14 (reference, measured, estimate; valve voltages; errors).
+
+Real-time health (pam_common.run_health): figures of a loop that did not run in time are not
+results. When the recording starts, the report calls the rig's `~/reset_statistics`
+(`<namespace>/<rig>/reset_statistics`, std_srvs/Trigger, asynchronously; the parameter `rig`,
+'sim_node', or 'driver_node' on the real rig), keeps the rig's latest /diagnostics status, and
+counts the estimate's sample counters (JointEstimate.sample) over the record: the samples the rig
+sent (last - first + 1) against those received. At the end it waits up to 3 s for a rig status
+taken after the record, judges the run and prints the health beside the figures; the summary
+JSON carries it ('health', with 'valid'). An INVALID run (late rig samples, a long stall, a late
+sample -> command latency, late commands, lost samples, or no rig status at all) is printed
+with a first line 'tracking_report: INVALID run: ...; the figures below are NOT results', its
+figure's title marked INVALID.
+
+Exit codes: 0 a valid report; 1 no report (nothing arrived, too few samples, no step) or an
+INVALID run (the figures and the JSON are still written, marked); 2 bad parameters; 130
+interrupted (what was recorded is reported).
 Run `tracking_report --help`.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from bisect import bisect_right
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from std_srvs.srv import Trigger
 
-from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
+from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher, status_node, status_values
 from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, usage_text
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import RECORD_QOS
+from pam_common.run_health import judge_run
 from pam_common.stamps import stamp_ns
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, REFERENCE, VALVE_COMMAND
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
@@ -52,11 +73,20 @@ PARAMETERS = (
     ParamSpec('startup_timeout', 120.0, 'double', 's',
               'Give up if no reference and measurement arrive within this time.',
               range=(1.0, 3600.0)),
+    ParamSpec('rig', 'sim_node', 'string', '',
+              "The rig node's name in the report's namespace whose /diagnostics and "
+              "~/reset_statistics give the run's real-time health; 'driver_node' on the real "
+              'rig.'),
     HARDWARE_ID_PARAM,
 )
 SUMMARY = ['Closed-loop tracking report (pam_controller): records reference, joint_measured,',
            'estimate and valve_command, then prints per-step metrics and writes a PNG.',
-           "Default namespace '/pam'."]
+           "Judges the run's real-time health from the rig's /diagnostics: an INVALID run",
+           '(not real time) is marked so and exits 1.',
+           'Exit codes: 0 a valid report, 1 no report or an INVALID run, 2 bad parameters,',
+           "130 interrupted. Default namespace '/pam'."]
+RIG_STATUS_WAIT = 3.0       # s after the record for a rig status taken after it
+RESET_SERVICE_WAIT = 5.0    # s after the start of the record for the rig's ~/reset_statistics
 
 
 class TrackingReport(Node):
@@ -67,6 +97,14 @@ class TrackingReport(Node):
         self.references = []        # (stamp ns, mode, value), in arrival order
         self.truth = {}             # stamp -> (angle, torque)
         self.estimates = {}         # stamp -> (angle, torque)
+        self.estimate_samples = {}  # stamp -> the estimate's sample counter (0: not counted)
+        self.rig_name = (self.get_namespace().rstrip('/') + '/' + self.values['rig'])
+        self.rig_status = None      # (monotonic receive time, key/values) of the rig's latest
+        self.end_time = None        # monotonic time the record ended
+        self._reset_client = None
+        self._reset_timer = None
+        self._reset_started = None
+        self._wait_timer = None
         self.commands = {}          # stamp -> (u1, u2)
         self.first_ns = None
         self.step_ns = None         # stamp of the first change of the reference (start 'step')
@@ -75,6 +113,8 @@ class TrackingReport(Node):
         self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, RECORD_QOS)
         self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, RECORD_QOS)
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, RECORD_QOS)
+        self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
         DiagnosticsPublisher(self, 'tracking report', self.values['hardware_id'], self._report)
         self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
@@ -99,14 +139,58 @@ class TrackingReport(Node):
             return
         if self.values['start'] == 'step' and (self.step_ns is None or t < self.step_ns):
             return
+        if self.end_time is not None:
+            return
         if self.first_ns is None:
             self.first_ns = t
+            self._reset_rig_statistics()
         self.truth[t] = (msg.angle, msg.torque)
         if (t - self.first_ns) * 1e-9 >= self.values['duration'] and not self.finished.done():
+            self.end_time = time.monotonic()     # wait for a rig status taken after the record
+            self._wait_timer = self.create_timer(0.05, self._wait_for_rig_status)
+
+    def _wait_for_rig_status(self):
+        fresh = self.rig_status is not None and self.rig_status[0] > self.end_time
+        if (fresh or time.monotonic() - self.end_time > RIG_STATUS_WAIT) \
+                and not self.finished.done():
+            if not fresh:
+                self.get_logger().warning(
+                    f'no /diagnostics from {self.rig_name} within {RIG_STATUS_WAIT:g} s after '
+                    'the record: judging its latest status' if self.rig_status else
+                    f'no /diagnostics from {self.rig_name}: real-time health unknown')
+            self.destroy_timer(self._wait_timer)
             self.finished.set_result(0)
 
+    def _reset_rig_statistics(self):
+        """Start the rig's timing and latency totals afresh at the start of the record, without
+        blocking: the call is made once the service is there (a few seconds at most)."""
+        service = f'{self.rig_name}/reset_statistics'
+        self._reset_client = self.create_client(Trigger, service)
+        self._reset_started = time.monotonic()
+
+        def poll():
+            if self._reset_client.service_is_ready():
+                self.destroy_timer(self._reset_timer)
+                future = self._reset_client.call_async(Trigger.Request())
+                future.add_done_callback(lambda f: self.get_logger().info(
+                    f'{service}: ' + (f.result().message if f.result() is not None
+                                      else 'no answer')))
+            elif time.monotonic() - self._reset_started > RESET_SERVICE_WAIT:
+                self.destroy_timer(self._reset_timer)
+                self.get_logger().warning(
+                    f'no service {service} within {RESET_SERVICE_WAIT:g} s: the rig\'s '
+                    'statistics count from its start, not from the record\'s')
+        self._reset_timer = self.create_timer(0.1, poll)
+
+    def _on_diagnostics(self, msg: DiagnosticArray):
+        for status in msg.status:
+            if status_node(status.name) == self.rig_name:
+                self.rig_status = (time.monotonic(), status_values(status))
+
     def _on_estimate(self, msg: JointEstimate):
-        self.estimates[stamp_ns(msg.header.stamp)] = (msg.angle, msg.torque)
+        stamp = stamp_ns(msg.header.stamp)
+        self.estimates[stamp] = (msg.angle, msg.torque)
+        self.estimate_samples[stamp] = msg.sample
 
     def _on_command(self, msg: ValveCommand):
         self.commands[stamp_ns(msg.header.stamp)] = (msg.u1, msg.u2)
@@ -138,6 +222,15 @@ class TrackingReport(Node):
         commands = np.array([self.commands.get(s, (np.nan, np.nan)) for s in stamps])
         return (stamps - stamps[0]) * 1e-9, mode, reference, measured, estimate, commands
 
+    def health(self):
+        """The run's real-time health (pam_common.run_health.RunHealth): the rig's latest
+        status, the estimate's sample counters over the record (first to last truth stamp)."""
+        first, last = min(self.truth), max(self.truth)
+        counters = [k for s, k in self.estimate_samples.items() if first <= s <= last and k]
+        expected = max(counters) - min(counters) + 1 if counters else 0
+        return judge_run(self.rig_status[1] if self.rig_status else None, len(set(counters)),
+                         expected)
+
     def finish(self) -> int:
         """Exit code: the report's, or why there is none."""
         if self.finished.done() and self.finished.result() != 0:
@@ -164,6 +257,11 @@ class TrackingReport(Node):
                   'more: no step to report', flush=True)
             return nothing
         rate = (len(t) - 1) / max(t[-1], 1e-9)
+        health = self.health()
+        if not health.valid:
+            print('tracking_report: INVALID run: the loop was not real time ('
+                  + '; '.join(health.reasons) + '); the figures below are NOT results',
+                  flush=True)
         print(f'tracking report: {"angle" if angle else "torque"} mode, {t[-1]:.1f} s, '
               f'{len(t)} samples ({rate:.0f} Hz); errors against the measured value, % of the '
               f'{span * scale:.0f} {unit} range', flush=True)
@@ -185,16 +283,26 @@ class TrackingReport(Node):
             else:
                 print(f'  estimation error after t >= {transient:g} s: fewer than 2 samples '
                       f'(the record spans {t[-1]:.1f} s)', flush=True)
+        print(f'  measurements received: {len(self.truth)}', flush=True)
+        for line in health.lines():
+            print('  ' + line, flush=True)
         if self.values['plot']:
+            title = self.values['title'] + ('' if health.valid else
+                                            ' - INVALID: not real time, not a result')
             path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
-                                 commands, unit, self.values['plot'], self.values['title'])
+                                 commands, unit, self.values['plot'], title)
             print(f'  figure: {path}', flush=True)
         if self.values['summary']:
-            path = write_json(self.values['summary'], report_summary(
-                'angle' if angle else 'torque', unit, t, report, scale, estimation,
-                self.values['transient']))
+            summary = report_summary('angle' if angle else 'torque', unit, t, report, scale,
+                                     estimation, self.values['transient'])
+            summary['measurements'] = len(self.truth)
+            summary['health'] = health.as_dict()
+            summary['valid'] = health.valid
+            path = write_json(self.values['summary'], summary)
             print(f'  summary: {path}', flush=True)
-        return 0
+        if interrupted:
+            return 130
+        return 0 if health.valid else 1
 
 
 def report_summary(mode: str, unit: str, t, report, scale: float, estimation: dict,

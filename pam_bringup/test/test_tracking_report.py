@@ -1,17 +1,48 @@
 """tracking_report as a real process fed by the test's probe: a run with no reference held long
 enough to be a step ends with one line and an exit code, not a traceback (fault campaign: a
 ValueError from max() of no steps); the estimation error over the whole record and after the
-initial transient."""
+initial transient; the real-time health judged from a rig status the probe publishes as
+/pam/sim_node's: a clean one gives a valid report, one with many late samples an INVALID run
+(exit 1, marked, the JSON still written)."""
 
+import json
 import math
 import re
+import threading
 import time
 
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
 
+from pam_common.diagnostics import make_status
 from pam_common.stamps import ns_stamp
 from pam_common.testing import wait_until
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference
+
+#: a clean rig status, as sim_node publishes it since its ~/reset_statistics
+CLEAN_RIG = {'samples taken': 3200, 'late samples': 0, 'worst stall (ms)': 0.4,
+             'commands timed': 3200, 'commands after the next sample': 3,
+             'latency p50 (ms)': 0.2, 'latency p99 (ms)': 0.5, 'latency max (ms)': 1.1}
+
+
+class FakeRig:
+    """Publishes `values` as /pam/sim_node's /diagnostics status every 0.2 s until closed."""
+
+    def __init__(self, probe, values: dict):
+        self._pub = probe.publisher(DiagnosticArray, '/diagnostics')
+        self._values = values
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        while not self._stop.wait(0.2):
+            self._pub.publish(DiagnosticArray(status=[make_status(
+                '/pam/sim_node: simulated rig', '/pam', 'OK', 'running', self._values)]))
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(5.0)
 
 
 def started_report(node_process, probe, *params):
@@ -43,33 +74,48 @@ def test_a_run_without_a_complete_step_reports_so(node_process, probe):
     assert 'Traceback' not in report.stdout + report.stderr, report.stderr
 
 
-def test_the_estimation_error_is_printed_whole_and_after_the_transient(node_process, probe):
-    """3 s of one held reference; the estimate is 0.1 rad off for the first 20 ms, 0.01 rad
-    after: the headline M is 0.1 rad (5.730 deg), the one after t >= 1 s is 0.01 rad (0.573 deg)."""
+def feed_held_reference(node_process, probe, tmp_path, rig: dict):
+    """tracking_report over 3 s of one held reference, the estimate 0.1 rad off for the first
+    20 ms, 0.01 rad after, every estimate with its sample counter, the rig status `rig`
+    published meanwhile: (report, its exit code, its summary JSON or None)."""
+    summary = tmp_path / 'summary.json'
     report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=3.0',
-                          '-p', 'transient:=1.0')
+                          '-p', 'transient:=1.0', '-p', f'summary:={summary}')
     references = probe.publisher(Reference, '/pam/reference')
     truth = probe.publisher(JointMeasurement, '/pam/joint_measured')
     estimates = probe.publisher(JointEstimate, '/pam/estimate')
     assert wait_until(lambda: references.get_subscription_count() > 0
                       and truth.get_subscription_count() > 0
                       and estimates.get_subscription_count() > 0, 60.0), report.stderr
-    references.publish(Reference(mode=Reference.ANGLE, value=0.1))
-    time.sleep(0.5)                                    # the reference is there before sample 0
-    k = 0
-    end = time.monotonic() + 60.0
-    while report.alive() and time.monotonic() < end and k <= 3200:
-        stamp = ns_stamp(1_000_000_000 + k * 1_000_000)
-        angle = 0.05 + 0.1 * k / 3000.0                # varies: Q needs a measured range
-        estimate = JointEstimate(angle=angle + (0.1 if k < 20 else 0.01))
-        estimate.header.stamp = stamp
-        estimates.publish(estimate)
-        msg = JointMeasurement(angle=angle)
-        msg.header.stamp = stamp
-        truth.publish(msg)
-        k += 1
-        time.sleep(0.0005)
-    assert report.wait_exit(30.0) == 0, report.stdout + report.stderr
+    fake_rig = FakeRig(probe, rig)
+    try:
+        references.publish(Reference(mode=Reference.ANGLE, value=0.1))
+        time.sleep(0.5)                                # the reference is there before sample 0
+        k = 0
+        end = time.monotonic() + 60.0
+        while report.alive() and time.monotonic() < end and k <= 3200:
+            stamp = ns_stamp(1_000_000_000 + k * 1_000_000)
+            angle = 0.05 + 0.1 * k / 3000.0            # varies: Q needs a measured range
+            estimate = JointEstimate(angle=angle + (0.1 if k < 20 else 0.01), sample=k + 1)
+            estimate.header.stamp = stamp
+            estimates.publish(estimate)
+            msg = JointMeasurement(angle=angle)
+            msg.header.stamp = stamp
+            truth.publish(msg)
+            k += 1
+            time.sleep(0.0005)
+        code = report.wait_exit(30.0)
+    finally:
+        fake_rig.close()
+    return report, code, json.loads(summary.read_text()) if summary.is_file() else None
+
+
+def test_the_estimation_error_is_printed_whole_and_after_the_transient(node_process, probe,
+                                                                       tmp_path):
+    """The headline M is 0.1 rad (5.730 deg), the one after t >= 1 s is 0.01 rad (0.573 deg);
+    the rig's status is clean: a valid run."""
+    report, code, summary = feed_held_reference(node_process, probe, tmp_path, CLEAN_RIG)
+    assert code == 0, report.stdout + report.stderr
     whole = re.search(r'estimation error \((\d+) samples\): I \S+ deg  M (\S+) deg', report.stdout)
     after = re.search(r'estimation error after t >= 1 s \((\d+) samples\): I \S+ deg  M (\S+) deg',
                       report.stdout)
@@ -77,6 +123,26 @@ def test_the_estimation_error_is_printed_whole_and_after_the_transient(node_proc
     assert float(whole[2]) == pytest.approx(math.degrees(0.1), rel=1e-3), report.stdout
     assert float(after[2]) == pytest.approx(math.degrees(0.01), rel=1e-3), report.stdout
     assert int(after[1]) < int(whole[1]), report.stdout
+    assert 'INVALID' not in report.stdout, report.stdout
+    assert re.search(r'^  real-time health: \d+ of \d+ samples received \(0 lost\), rig: 0 late '
+                     r'samples, .*: VALID$', report.stdout, re.MULTILINE), report.stdout
+    assert summary['valid'] is True and summary['health']['valid'] is True, summary
+    assert summary['health']['samples_lost'] == 0 and summary['health']['samples_sent'] > 2900
+
+
+def test_a_run_whose_rig_was_late_is_invalid(node_process, probe, tmp_path):
+    """The rig says 10 % of its samples were late and it stalled 45 ms: INVALID, exit 1, the
+    first line says the figures are not results, the JSON is written with valid false."""
+    late = {**CLEAN_RIG, 'late samples': 320, 'worst stall (ms)': 45.0}
+    report, code, summary = feed_held_reference(node_process, probe, tmp_path, late)
+    assert code == 1, report.stdout + report.stderr
+    assert report.stdout.startswith('tracking_report: INVALID run: the loop was not real time '
+                                    '(320 of 3200 rig samples late (10.00 % > 1 %); worst '
+                                    'stall 45.0 ms > 20 ms); the figures below are NOT '
+                                    'results\n'), report.stdout
+    assert ': INVALID: ' in report.stdout and 'estimation error' in report.stdout
+    assert summary['valid'] is False and summary['health']['valid'] is False, summary
+    assert len(summary['health']['reasons']) == 2, summary['health']
 
 
 def test_start_at_the_first_step_records_whole_holds(node_process, probe):
@@ -84,6 +150,7 @@ def test_start_at_the_first_step_records_whole_holds(node_process, probe):
     feed), not at the first reference: 2 s recorded are the hold at 0.2 from its first sample."""
     report, references, truth = started_report(node_process, probe, 'duration:=2.0',
                                                'start:=step', 'transient:=0.0')
+    fake_rig = FakeRig(probe, CLEAN_RIG)
     k = 0
     end = time.monotonic() + 60.0
     while report.alive() and time.monotonic() < end and k <= 3500:
@@ -98,7 +165,9 @@ def test_start_at_the_first_step_records_whole_holds(node_process, probe):
         truth.publish(msg)
         k += 1
         time.sleep(0.0005)
-    assert report.wait_exit(30.0) == 0, report.stdout + report.stderr
+    code = report.wait_exit(30.0)
+    fake_rig.close()
+    assert code == 0, report.stdout + report.stderr
     assert 'after the first change of the reference' in report.stderr, report.stderr
     steps = re.findall(r'^\s+(\d+\.\d)\s+(-?\d+\.\d+)deg', report.stdout, re.MULTILINE)
     assert steps == [('0.0', f'{math.degrees(0.2):.2f}')], report.stdout
