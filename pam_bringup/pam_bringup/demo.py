@@ -8,23 +8,33 @@
 2. pam-identify fits the model to them (partial: what the runs cannot identify keeps its prior
    value and the report says so) into OUT/demo/identified (params.yaml, kappa.csv,
    extensions.yaml, report.txt).
-3. Real-time sensor-less angle tracking, twice at once on one ROS domain in two namespaces:
-   pam-bringup (composed) runs the simulated rig (sim_node at 1 kHz on the scenario), ukf_node,
-   pi_node and reference_node (paper-style steps within +-20 deg, 8 s each), /nominal with the
-   nominal model, /identified with the identified one; a tracking_report in each namespace
-   records --duration seconds from the first step and reports per step the steady-state error
-   against the TRUE angle and the settling time, and the estimation error I / M / Q.
-4. The two reports, the nominal-vs-identified comparison, the figure OUT/demo_tracking.png (the
-   identified run; OUT/demo_tracking_nominal.png the nominal one) and OUT/demo_summary.json.
+3. The nominal-vs-identified comparison on the batch closed loop with the plant's effects
+   (pam_controller.closed_loop.simulate_closed_loop_with_effects; demo_workflow.batch_comparison):
+   the scenario's plant stepped sample by sample, read through its sensor, the UKF (nominal
+   model; identified model + extensions) and pi_node's gains from the parameter file, the
+   paper-style angle steps (--seed, --duration s); per model the worst steady-state error
+   against the TRUE angle, the worst settling and every step. Deterministic: it does not depend
+   on the machine's load.
+4. ONE real-time sensor-less run with the identified model: pam-bringup (composed) in
+   /identified runs the simulated rig (sim_node at 1 kHz on the scenario), ukf_node, pi_node and
+   reference_node (paper-style steps within +-20 deg, 8 s each); tracking_report records
+   --duration seconds from the first step, reports per step the steady-state error against the
+   TRUE angle, the settling time, the estimation error I / M / Q, and the run's real-time health
+   from the rig's /diagnostics (pam_common.run_health). A run that was not real time is INVALID:
+   its figures are printed as NOT results, and pam-demo exits 1.
+The figure OUT/demo_tracking.png (the real-time run) and OUT/demo_summary.json ('comparison':
+the batch figures; 'realtime': the real-time run's with its 'health'; 'valid').
 
 OUT/demo is replaced by the next pam-demo (it carries a marker; a directory without it is never
 removed). Node logs go to OUT/logs/. The ROS domain is --domain-id, else ROS_DOMAIN_ID, else a
 random one in 110..199; discovery stays on this machine unless ROS_AUTOMATIC_DISCOVERY_RANGE says
 otherwise.
 
-Exit code: 0 done; 1 a step failed (its output is printed) or a stack stopped early; 2 a usage
-or set-up error; 130 interrupted (Ctrl-C: the tracking reports print what they recorded). SIGTERM
-/ SIGHUP are passed on to the running step as SIGINT.
+Exit code: 0 done (the real-time run was real time); 1 a step failed (its output is printed), the
+stack stopped early, or the real-time run was INVALID (not real time on this machine: the summary
+is still written, with 'valid': false); 2 a usage or set-up error; 130 interrupted (Ctrl-C: the
+tracking report prints what it recorded). SIGTERM / SIGHUP are passed on to the running step as
+SIGINT.
 """
 
 from __future__ import annotations
@@ -39,14 +49,19 @@ import sys
 import time
 from pathlib import Path
 
+import yaml
+
 from pam_common.executables import executable_candidates, find_executable
 
 from .demo_workflow import (
     CAMPAIGNS,
-    RUNS,
+    REALTIME_RUN,
     DemoPaths,
+    batch_comparison,
     comparison_lines,
+    demo_models,
     demo_summary,
+    loop_settings,
     write_run_params,
 )
 from .json_file import write_json
@@ -68,15 +83,18 @@ EXECUTABLES = {'pam-calibration-bags': 'pam_estimator', 'pam-identify': 'pam_est
 def parse_args(argv):
     parser = argparse.ArgumentParser(
         prog=PROG,
-        description='The main job, the workflow a lab follows on the simulated rig: the '
-                    'calibration campaign (pam-calibration-bags), pam-identify, then real-time '
-                    'sensor-less angle tracking with the nominal and the identified model side '
-                    'by side (pam-bringup + tracking_report in /nominal and /identified); prints '
-                    'per step and the comparison, writes OUT/demo_tracking.png and '
-                    'OUT/demo_summary.json.',
-        epilog='Exit codes: 0 done, 1 a step failed or a stack stopped early, 2 usage or set-up '
-               'error, 130 interrupted. `make demo` runs it (DURATION=30 make demo: '
-               '--duration 30).')
+        description='The main job, the workflow a lab follows on the simulated rig: 1. the '
+                    'calibration campaign (pam-calibration-bags), 2. pam-identify, 3. the '
+                    'nominal-vs-identified comparison on the batch closed loop with the '
+                    "plant's effects (deterministic, independent of the machine's load), 4. ONE "
+                    'real-time sensor-less angle tracking run with the identified model '
+                    '(pam-bringup + tracking_report in /identified), judged for its real-time '
+                    'health; prints per step, writes OUT/demo_tracking.png (the real-time run) '
+                    'and OUT/demo_summary.json.',
+        epilog='Exit codes: 0 done, 1 a step failed, the stack stopped early or the real-time '
+               'run was INVALID (not real time on this machine; its figures are not results), '
+               '2 usage or set-up error, 130 interrupted. `make demo` runs it (DURATION=30 '
+               'make demo: --duration 30).')
     parser.add_argument('--scenario', default=DEFAULT_SCENARIO, metavar='NAME|FILE',
                         help="the simulated rig's mismatch scenario: 'mild', 'strong', "
                              "'realistic', 'harsh' or a scenario YAML (default "
@@ -86,9 +104,11 @@ def parse_args(argv):
                              "free run) or 'quick' (2 angles, 5 voltages, 30 s free run) "
                              '(default full)')
     parser.add_argument('--seed', type=int, default=0,
-                        help='seed of the campaign (profiles, sensor noise) (default 0)')
+                        help='seed of the campaign (profiles, sensor noise) and of the batch '
+                             "comparison's reference steps and noise (default 0)")
     parser.add_argument('--duration', type=float, default=DEFAULT_DURATION, metavar='SECONDS',
-                        help=f'how long each tracking run records (default {DEFAULT_DURATION:g})')
+                        help='how long the batch comparison simulates and the real-time run '
+                             f'records (default {DEFAULT_DURATION:g})')
     parser.add_argument('--transient', type=float, default=1.0, metavar='SECONDS',
                         help='the estimation error is also given over t >= SECONDS of each '
                              'record (default 1)')
@@ -196,99 +216,111 @@ def main(argv=None) -> int:
     print(f"demo: scenario '{args.scenario}', campaign '{args.campaign}'; "
           f"ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}; logs in {paths.logs}/", flush=True)
     code = steps.run(
-        f"1/3 calibration campaign on the simulated '{args.scenario}' rig (pam-calibration-bags)",
+        f"1/4 calibration campaign on the simulated '{args.scenario}' rig (pam-calibration-bags)",
         [exe['pam-calibration-bags'], str(paths.calibration), '--mismatch', args.scenario,
          '--seed', str(args.seed), *CAMPAIGNS[args.campaign]], paths.logs / 'calibration.log')
     if code:
         return code
     bags = sorted(str(p) for p in paths.calibration.iterdir() if p.is_dir())
-    code = steps.run('2/3 identification (pam-identify --partial)',
+    code = steps.run('2/4 identification (pam-identify --partial)',
                      [exe['pam-identify'], *bags, '-o', str(paths.identified), '--partial',
                       '--truth-mismatch', args.scenario], paths.logs / 'identify.log')
     if code:
         return code
     identification = identification_summary(paths.identified)
     try:
+        base = yaml.safe_load(default_params_file().read_text())
+        settings = loop_settings(base)
         params = write_run_params(paths, default_params_file(), args.scenario)
     except (OSError, ValueError) as exc:
         return error(str(exc))
     print(f"demo: identified model in {paths.identified}/ (report.txt)"
           + ('' if identification['complete'] else '; kept at the prior: '
              + '; '.join(identification['not_identified'])), flush=True)
-    reports, code = track(args, exe, paths, params, env, steps)
-    for run in RUNS:
-        log = paths.logs / f'tracking_{run}.log'
-        if log.is_file():
-            print(f'\n=== {run} model ===', flush=True)
-            print(log.read_text(errors='replace').rstrip('\n'), flush=True)
-    print('\ndemo: nominal vs identified model on the simulated '
-          f"'{args.scenario}' rig (errors against the true angle):", flush=True)
-    for line in comparison_lines(reports):
+
+    print(f'demo: 3/4 batch comparison, nominal vs identified model, on the batch closed loop '
+          f"with the '{args.scenario}' plant's effects ({args.duration:g} s of angle steps, "
+          f"PI gains {settings['gains'][0]:g}, {settings['gains'][1]:g}) ...", flush=True)
+    t3 = time.monotonic()
+    comparison = batch_comparison(args.scenario, demo_models(paths.identified), settings,
+                                  args.duration, args.seed)
+    print(f'demo: 3/4 batch comparison: done in {time.monotonic() - t3:.0f} s; errors against '
+          'the true angle:', flush=True)
+    for line in comparison_lines(comparison):
         print('  ' + line, flush=True)
-    write_json(paths.summary, demo_summary(args.scenario, args.campaign, reports, identification))
-    print(f'demo: summary {paths.summary}, figure {paths.figure("identified")}; '
+    if steps.interrupted:
+        return 130
+
+    realtime, code = track(args, exe, paths, params, env, steps)
+    log = paths.logs / f'tracking_{REALTIME_RUN}.log'
+    if log.is_file():
+        print(f'\n=== real-time run, {REALTIME_RUN} model ===', flush=True)
+        print(log.read_text(errors='replace').rstrip('\n'), flush=True)
+    health = (realtime or {}).get('health') or {}
+    valid = code == 0 and bool(realtime) and realtime.get('valid') is True
+    write_json(paths.summary, demo_summary(args.scenario, args.campaign, identification,
+                                           comparison, realtime, valid))
+    if realtime is not None and realtime.get('valid') is False:
+        print('demo: INVALID: the real-time run was not real time on this machine ('
+              + '; '.join(health.get('reasons') or ['no reason given'])
+              + '); its figures are not results', file=sys.stderr, flush=True)
+        code = code or 1
+    print(f'demo: summary {paths.summary}, figure {paths.figure(REALTIME_RUN)}; '
           f'{time.monotonic() - t0:.0f} s in all', flush=True)
     return code
 
 
 def track(args, exe, paths: DemoPaths, params: dict, env: dict, steps: Steps):
-    """Step 3: both stacks and both reports; ({run: summary dict}, exit code)."""
-    print(f'demo: 3/3 real-time sensor-less tracking, nominal and identified model side by '
-          f'side, {args.duration:g} s each ...', flush=True)
-    stacks = [Child(f'bringup_{run}', [exe['pam-bringup'], '--namespace', f'/{run}',
-                                      '--params-file', str(params[run]), '--log-dir',
-                                      str(paths.logs / run)], f'the {run} stack')
-              for run in RUNS]
-    for run in RUNS:
-        (paths.logs / run).mkdir(parents=True, exist_ok=True)
-    supervisor = Supervisor(stacks, env, Output(PROG, [c.name for c in stacks], False,
-                                                echo=False),
+    """Step 4: the identified stack and its report; (its summary dict or None, exit code). The
+    report's exit 1 with a summary whose 'valid' is false is an INVALID run (not real time): the
+    summary is returned, the exit code is 1."""
+    run = REALTIME_RUN
+    print(f'demo: 4/4 real-time sensor-less tracking with the {run} model, '
+          f'{args.duration:g} s ...', flush=True)
+    (paths.logs / run).mkdir(parents=True, exist_ok=True)
+    stack = Child(f'bringup_{run}', [exe['pam-bringup'], '--namespace', f'/{run}',
+                                     '--params-file', str(params[run]), '--log-dir',
+                                     str(paths.logs / run)], f'the {run} stack')
+    supervisor = Supervisor([stack], env, Output(PROG, [stack.name], False, echo=False),
                             log_dir=paths.logs, sigterm_after=BRINGUP_SIGTERM_AFTER,
                             stop_timeout=BRINGUP_STOP_TIMEOUT)
     supervisor.start()
-    reports, codes, logs = {}, {}, {}
+    code = None
     try:
-        procs = {}
-        for run in RUNS:
-            logs[run] = open(paths.logs / f'tracking_{run}.log', 'w')  # noqa: SIM115
-            procs[run] = subprocess.Popen(
+        with open(paths.logs / f'tracking_{run}.log', 'w') as log:
+            proc = subprocess.Popen(
                 [exe['tracking_report'], '--ros-args', '-r', f'__ns:=/{run}',
                  '-p', f'duration:={args.duration:.1f}', '-p',
-                 f'transient:={args.transient:.3f}', '-p', 'start:=step',
+                 f'transient:={args.transient:.3f}', '-p', 'start:=step', '-p', 'rig:=sim_node',
                  '-p', f'plot:={paths.figure(run)}', '-p',
                  f'summary:={paths.report_summary(run)}', '-p',
                  f'title:=Sensor-less PI tracking, {run} model, simulated {args.scenario} rig'],
-                stdout=logs[run], stderr=subprocess.STDOUT, env=env)
-        steps.running = list(procs.values())
-        for run, proc in procs.items():
-            codes[run] = proc.wait()
-        steps.running = []
+                stdout=log, stderr=subprocess.STDOUT, env=env)
+            steps.running = [proc]
+            try:
+                code = proc.wait()
+            finally:
+                steps.running = []
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGINT)
+                    proc.wait()
         dead = supervisor.dead()
     finally:
-        for proc in steps.running:
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-                proc.wait()
-        for log in logs.values():
-            log.close()
         supervisor.stop()
-    for run in RUNS:
-        path = paths.report_summary(run)
-        if codes.get(run) == 0 and path.is_file():
-            reports[run] = json.loads(path.read_text())
+    path = paths.report_summary(run)
+    report = json.loads(path.read_text()) if code in (0, 1) and path.is_file() else None
     if steps.interrupted:
-        return reports, 130
-    bad = [run for run in RUNS if codes.get(run) != 0]
-    if bad:
-        print(f"demo: tracking_report failed for {', '.join(bad)} "
-              f"(exit {', '.join(str(codes.get(r)) for r in bad)})", file=sys.stderr, flush=True)
-        return reports, 1
+        return report, 130
+    if code != 0 and not (report is not None and report.get('valid') is False):
+        print(f'demo: tracking_report failed for the {run} run (exit {code})', file=sys.stderr,
+              flush=True)
+        return report, 1
     if dead:
         for child in dead:
             print(f'demo: {child.name} stopped early; its log:', file=sys.stderr)
             print('\n'.join(list(child.tail)[-LOG_TAIL_LINES:]), file=sys.stderr, flush=True)
-        return reports, 1
-    return reports, 0
+        return report, 1
+    return report, code
 
 
 if __name__ == '__main__':
