@@ -34,7 +34,6 @@ from bisect import bisect_right
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
@@ -44,7 +43,14 @@ from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import RECORD_QOS
 from pam_common.run_health import judge_run
 from pam_common.stamps import stamp_ns
-from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, REFERENCE, VALVE_COMMAND
+from pam_common.topics import (
+    DEFAULT_NAMESPACE,
+    DIAGNOSTICS,
+    ESTIMATE,
+    JOINT_MEASURED,
+    REFERENCE,
+    VALVE_COMMAND,
+)
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN, step_report
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
@@ -113,8 +119,7 @@ class TrackingReport(Node):
         self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, RECORD_QOS)
         self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, RECORD_QOS)
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, RECORD_QOS)
-        self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
-                                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        self.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RECORD_QOS)
         self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
         DiagnosticsPublisher(self, 'tracking report', self.values['hardware_id'], self._report)
         self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
