@@ -89,6 +89,11 @@ def parse_args(argv):
                       help='every node a process of its own: a crash or a hang stays in its '
                            'process, each node gets its own log prefix and log file')
     parser.set_defaults(separate=False)
+    parser.add_argument('--links', action='store_true',
+                        help='composed: the 1 kHz path between the composed nodes as function '
+                             'calls (in-process links), about a quarter of the CPU; a publisher '
+                             'of another process on a linked topic is then not heard '
+                             '(docs/composition.md)')
     parser.add_argument('--params-file', metavar='FILE', type=Path,
                         help='ROS 2 params YAML with a section per node (default: '
                              'share/pam_bringup/config/bringup.yaml)')
@@ -172,7 +177,7 @@ def run(args, nodes, executables: dict[str, str], params: StackParams) -> int:
     if not args.separate:
         argv = node_argv(executables[CONTAINER.name], args.namespace, params.file)
         argv[1:1] = container_options(args.rig, reference=not args.no_reference,
-                                      controller=not args.no_controller)
+                                      controller=not args.no_controller, links=args.links)
         children = [Child(CONTAINER.name, argv, ', '.join(n.name for n in nodes))]
     else:
         children = [Child(node.name, node_argv(executables[node.name], args.namespace,

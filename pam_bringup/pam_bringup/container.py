@@ -25,6 +25,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from pam_common.links import enable_links
 from pam_common.node_skeleton import Component, container_main
 
 from .params_namespace import stack_params
@@ -45,7 +46,7 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f'{PROG} [-h] [--rig {{{",".join(sorted(RIGS))}}}] [--no-reference] '
-              '[--no-controller] [--namespace NS [NS ...]] [--params-file FILE] '
+              '[--no-controller] [--links] [--namespace NS [NS ...]] [--params-file FILE] '
               '[--ros-args ...]',
         description='The nodes of the PAM stack (the rig, ukf_node, reference_node, pi_node) '
                     'composed in one process on one executor: the same node classes, topics, '
@@ -62,6 +63,12 @@ def parser() -> argparse.ArgumentParser:
                    help='sim: sim_node, the simulated rig; driver: driver_node (default sim)')
     p.add_argument('--no-reference', action='store_true', help='without reference_node')
     p.add_argument('--no-controller', action='store_true', help='without pi_node')
+    p.add_argument('--links', action='store_true',
+                   help='in-process links: a message between two nodes of this process is '
+                        'handed to the subscriber as a function call (no DDS, no '
+                        'serialisation), and published on DDS only for other processes; '
+                        'a publisher of another process on a linked topic is then not heard '
+                        '(pam_common.links, docs/composition.md)')
     p.add_argument('--namespace', nargs='+', metavar='NS', default=[],
                    help='one stack per namespace (default: one stack, in /pam unless the ROS '
                         'arguments remap __ns)')
@@ -91,6 +98,7 @@ def main(argv=None) -> int:
     specs = stack_nodes(args.rig, reference=not args.no_reference,
                         controller=not args.no_controller)
     remapped = [a.split(':=', 1)[1] for a in ros_args if a.startswith('__ns:=')]
+    links = enable_links() if args.links else None
     with tempfile.TemporaryDirectory(prefix=f'{PROG}-') as run_dir:
         components, node_kwargs = [], []
         for ns in namespaces or [None]:
@@ -112,8 +120,13 @@ def main(argv=None) -> int:
 
         def started(nodes) -> None:
             from rclpy.logging import get_logger
-            get_logger(PROG).info(f'{len(nodes)} nodes in one process: ' + ', '.join(
+            logger = get_logger(PROG)
+            logger.info(f'{len(nodes)} nodes in one process: ' + ', '.join(
                 node.get_fully_qualified_name() for node in nodes))
+            if links is not None:
+                for line in links.links():
+                    logger.info(f'in-process link {line}')
+                links.open()
 
         return container_main(components, PROG, p.format_usage(), [PROG, *ros_args],
                               node_kwargs=node_kwargs, on_started=started)

@@ -69,10 +69,10 @@ def normal_namespace(text: str) -> str:
 
 
 def container_options(rig: str = 'sim', reference: bool = True,
-                      controller: bool = True) -> list[str]:
+                      controller: bool = True, links: bool = False) -> list[str]:
     """pam_container's options for the stack_nodes() of these arguments."""
     return (['--rig', rig] + ([] if reference else ['--no-reference'])
-            + ([] if controller else ['--no-controller']))
+            + ([] if controller else ['--no-controller']) + (['--links'] if links else []))
 
 
 def every_node() -> list[NodeSpec]:

@@ -185,10 +185,17 @@ def qos_profiles_built(tree: ast.AST) -> list[int]:
     return [node.lineno for node in ast.walk(tree) if _called(node) == 'QoSProfile']
 
 
+#: the node base classes: rclpy's Node, and pam_common.links' LinkedNode (a Node that takes
+#: part in a composed process's in-process links), which defines no node of its own
+NODE_BASES = {'Node', 'LinkedNode'}
+
+
 def node_classes(tree: ast.AST) -> list[str]:
-    """The classes deriving from rclpy's Node."""
+    """The node classes: deriving from rclpy's Node or pam_common.links.LinkedNode (not
+    LinkedNode itself)."""
     return [node.name for node in ast.walk(tree) if isinstance(node, ast.ClassDef)
-            and any(isinstance(b, ast.Name) and b.id == 'Node' for b in node.bases)]
+            and node.name not in NODE_BASES
+            and any(isinstance(b, ast.Name) and b.id in NODE_BASES for b in node.bases)]
 
 
 def skeleton_problems(tree: ast.AST) -> list[str]:

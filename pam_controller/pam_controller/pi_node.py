@@ -32,11 +32,11 @@ import time
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.logging import LoggingSeverity
-from rclpy.node import Node
 from std_srvs.srv import SetBool
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
+from pam_common.links import LinkedNode
 from pam_common.node_params import (
     HARDWARE_ID_PARAM,
     ConfigError,
@@ -140,7 +140,7 @@ def build_loop(values: dict) -> ControlLoop:
                        values['initial_reference'], values['enabled'])
 
 
-class PiNode(Node):
+class PiNode(LinkedNode):
     """One valve command per feedback sample."""
 
     def __init__(self, **kwargs):

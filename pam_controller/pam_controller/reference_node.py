@@ -17,10 +17,10 @@ import math
 import sys
 
 import numpy as np
-from rclpy.node import Node
 
 from pam_common.diagnostics import OK, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
+from pam_common.links import LinkedNode
 from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, check_all, fail, usage_text
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS
@@ -91,7 +91,7 @@ def check_values(values: dict) -> dict:
     return values
 
 
-class ReferenceNode(Node):
+class ReferenceNode(LinkedNode):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)

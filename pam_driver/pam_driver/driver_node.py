@@ -55,7 +55,6 @@ import time
 from collections.abc import Callable
 
 from rclpy.logging import LoggingSeverity
-from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
@@ -63,6 +62,7 @@ from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
+from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
@@ -102,7 +102,7 @@ class InjectedError(RuntimeError):
     """The internal error of the inject_internal_error parameter (tests of the exception path)."""
 
 
-class DriverNode(Node):
+class DriverNode(LinkedNode):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)

@@ -100,7 +100,6 @@ import time
 
 import rclpy
 from rclpy.logging import LoggingSeverity
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
@@ -110,6 +109,7 @@ from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
+from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
@@ -139,7 +139,7 @@ COMMAND_STEP_DEBUG = 0.5   # V: a DEBUG line when the applied command moves this
 
 
 
-class SimNode(Node):
+class SimNode(LinkedNode):
     """The simulated rig. Construct, then configure() (raises ConfigError), then start()."""
 
     def __init__(self, **kwargs):

@@ -38,13 +38,13 @@ import sys
 
 import numpy as np
 from rclpy.logging import LoggingSeverity
-from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
+from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
@@ -68,7 +68,7 @@ NODE_NAME = 'ukf_node'
 LOG_THROTTLE = 1.0   # s
 
 
-class UkfNode(Node):
+class UkfNode(LinkedNode):
     """Subscribes pressures and valve commands, publishes one JointEstimate per sample."""
 
     def __init__(self, **kwargs):

@@ -1,0 +1,206 @@
+"""In-process links: the 1 kHz path of a composed stack as function calls, not DDS messages.
+
+Why: in rclpy, a message between two nodes of one process goes through the middleware like any
+other: serialised, written, taken by the executor, deserialised and dispatched. Measured on the
+2-core development machine, a publish plus its dispatch by the EventsExecutor costs about 130 us
+per message, against about 10 us for a publish nobody in the process receives; a composed stack
+moves four such messages per sample (pressures, estimate, valve_command twice), most of a core at
+1 kHz, ten times the models' own compute. rclcpp's intra-process transport (a message handed to
+the subscriptions of the same process as a pointer, no serialisation) and ros2_control's chained
+controllers (one update loop calls the controllers in order) avoid that cost; rclpy has neither.
+
+What: when a composing process (pam_container --links) enables the links before it builds its
+nodes, a publication on a topic that a node of the same process subscribes is handed to that
+node's callback directly, in the publishing thread, as the same message object; it is published
+on DDS as well, for the subscriptions of other processes and hosts (tracking_report, a bag
+recorder, a live view), only while any exists. A node is a LinkedNode (a plain rclpy Node when
+the links are off: no cost, no change). The nodes stay separate nodes, each with its parameters,
+services and /diagnostics, each runnable alone over DDS.
+
+Trade-offs, chosen and written down (docs/composition.md):
+- a linked subscription has no DDS subscription: a publisher of another process on a linked
+  topic is not heard by the composed node (as a chained controller takes its reference from the
+  controller before it, not from a topic), and the ROS graph shows no subscriber of it in the
+  container; run without --links (the default) to inject messages from outside;
+- one process-wide re-entrant lock, `ProcessLinks.lock`, serialises every callback of the linked
+  nodes (timers, services, parameter callbacks, DDS subscriptions and the linked deliveries): a
+  delivery runs in the publisher's thread (e.g. sim_node's sampler), so without it two threads
+  could run one node's callbacks at once, which a single-threaded executor never does;
+- the subscriber receives the publisher's message object, not a copy: a publisher must not
+  change a message after publishing it (the stack's nodes build a new message per sample).
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from collections.abc import Callable
+
+from rclpy.node import Node
+
+__all__ = ['LinkedNode', 'ProcessLinks', 'disable_links', 'enable_links', 'process_links']
+
+_ACTIVE: list[ProcessLinks] = []      # the process's links once enabled (one at most)
+
+
+def enable_links() -> ProcessLinks:
+    """Turn the in-process links on for every LinkedNode built from now on in this process."""
+    if not _ACTIVE:
+        _ACTIVE.append(ProcessLinks())
+    return _ACTIVE[0]
+
+
+def disable_links() -> None:
+    """Turn the links off for nodes built from now on (tests that build nodes both ways)."""
+    _ACTIVE.clear()
+
+
+def process_links() -> ProcessLinks | None:
+    """The process's links, None when they are off (the default)."""
+    return _ACTIVE[0] if _ACTIVE else None
+
+
+class LinkedSubscription:
+    """A node's subscription in a linked process: fed directly by the linked publishers of its
+    topic, and by DDS (a real subscription) only while the process has no publisher of it."""
+
+    def __init__(self, node: Node, msg_type, topic_name: str, callback: Callable,
+                 make_dds: Callable[[], object]):
+        self.node = node
+        self.msg_type = msg_type
+        self.topic_name = topic_name
+        self.callback = callback
+        self._make_dds = make_dds
+        self.dds = None
+
+    def open_dds(self) -> None:
+        if self.dds is None:
+            self.dds = self._make_dds()
+
+    def close_dds(self) -> None:
+        if self.dds is not None:
+            self.node.destroy_subscription(self.dds)
+            self.dds = None
+
+
+class LinkedPublisher:
+    """A publisher whose messages reach the linked subscriptions of its topic directly, and DDS
+    only while a subscription of another process matches. Other attributes: the rclpy one's."""
+
+    def __init__(self, links: ProcessLinks, publisher, local: list[LinkedSubscription]):
+        self._publisher = publisher
+        self._local = local             # shared with ProcessLinks: later subscriptions join it
+        self._links = links
+        self._lock = links.lock
+        self.topic_name = publisher.topic_name
+        self.msg_type = publisher.msg_type
+
+    def get_subscription_count(self) -> int:
+        """Subscriptions on DDS (other processes) plus the linked ones of this process."""
+        return self._publisher.get_subscription_count() + len(self._local)
+
+    def publish(self, msg) -> None:
+        if self._local and self._links.is_open:
+            with self._lock:
+                for subscription in self._local:
+                    subscription.callback(msg)
+        if self._publisher.get_subscription_count():
+            self._publisher.publish(msg)
+
+    def __getattr__(self, name):
+        return getattr(self._publisher, name)
+
+
+class ProcessLinks:
+    """The links of one process: its publishers and subscriptions by topic and message type."""
+
+    def __init__(self):
+        self.lock = threading.RLock()
+        self.is_open = False    # deliveries start once every node of the process is built
+        self._subscriptions: dict[tuple[str, type], list[LinkedSubscription]] = {}
+        self._published: dict[tuple[str, type], list[str]] = {}   # -> publishing nodes
+
+    def open(self) -> None:
+        """Start the deliveries: every node of the process is built (a node that publishes
+        from a thread of its own, e.g. sim_node's sampler, may start before the others exist;
+        its messages until now reached only DDS, as an executor that does not spin yet)."""
+        self.is_open = True
+
+    def serialised(self, callback: Callable) -> Callable:
+        """callback, run under the process's lock."""
+        lock = self.lock
+
+        @functools.wraps(callback)
+        def locked(*args, **kwargs):
+            with lock:
+                return callback(*args, **kwargs)
+        return locked
+
+    def publisher(self, node: Node, publisher) -> LinkedPublisher:
+        key = (publisher.topic_name, publisher.msg_type)
+        local = self._subscriptions.setdefault(key, [])
+        with self.lock:
+            self._published.setdefault(key, []).append(node.get_fully_qualified_name())
+            for subscription in local:       # subscribed before this publisher existed
+                subscription.close_dds()
+        return LinkedPublisher(self, publisher, local)
+
+    def subscription(self, node: Node, msg_type, topic_name: str, callback: Callable,
+                     make_dds: Callable[[], object]) -> LinkedSubscription:
+        key = (topic_name, msg_type)
+        subscription = LinkedSubscription(node, msg_type, topic_name, callback, make_dds)
+        with self.lock:
+            self._subscriptions.setdefault(key, []).append(subscription)
+            if key not in self._published:
+                subscription.open_dds()
+        return subscription
+
+    def links(self) -> list[str]:
+        """One line per linked topic: 'topic: publisher -> subscriber, ...'."""
+        lines = []
+        for key, publishers in sorted(self._published.items(), key=lambda item: item[0][0]):
+            subscribers = self._subscriptions.get(key, [])
+            if subscribers:
+                lines.append(f"{key[0]}: {', '.join(publishers)} -> " + ', '.join(
+                    s.node.get_fully_qualified_name() for s in subscribers))
+        return lines
+
+
+class LinkedNode(Node):
+    """A Node whose publishers, subscriptions and callbacks take part in the process's links
+    when they are on (pam_container --links), and a plain rclpy Node otherwise."""
+
+    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        links = process_links()
+        return publisher if links is None else links.publisher(self, publisher)
+
+    def create_subscription(self, msg_type, topic, callback, qos_profile, **kwargs):
+        links = process_links()
+        if links is None:
+            return super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
+        make = functools.partial(super().create_subscription, msg_type, topic,
+                                 links.serialised(callback), qos_profile, **kwargs)
+        return links.subscription(self, msg_type, self.resolve_topic_name(topic), callback, make)
+
+    def create_timer(self, timer_period_sec, callback, *args, **kwargs):
+        links = process_links()
+        if links is not None:
+            callback = links.serialised(callback)
+        return super().create_timer(timer_period_sec, callback, *args, **kwargs)
+
+    def create_service(self, srv_type, srv_name, callback, *args, **kwargs):
+        links = process_links()
+        if links is not None:
+            callback = links.serialised(callback)
+        return super().create_service(srv_type, srv_name, callback, *args, **kwargs)
+
+    def add_on_set_parameters_callback(self, callback):
+        links = process_links()
+        return super().add_on_set_parameters_callback(
+            callback if links is None else links.serialised(callback))
+
+    def add_post_set_parameters_callback(self, callback):
+        links = process_links()
+        return super().add_post_set_parameters_callback(
+            callback if links is None else links.serialised(callback))

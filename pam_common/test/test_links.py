@@ -1,0 +1,141 @@
+"""pam_common.links: in-process links between the nodes of one process (pam_container --links),
+with real rclpy nodes and DDS: a linked message reaches the node of the same process as a call
+in the publishing thread, DDS carries it only for a subscription of another participant, and the
+callbacks of the linked nodes run one at a time under the process's lock."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+import rclpy
+from rclpy.context import Context
+
+from pam_common.executors import make_executor
+from pam_common.links import LinkedNode, disable_links, enable_links, process_links
+from pam_common.qos import SAMPLE_QOS
+from pam_common.testing import wait_until
+from pam_interfaces.msg import Pressures
+
+
+@pytest.fixture
+def links():
+    links = enable_links()
+    yield links
+    disable_links()
+
+
+@pytest.fixture
+def context(ros_domain):
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain)
+    yield context
+    context.try_shutdown()
+
+
+def _sample(k: int) -> Pressures:
+    msg = Pressures()
+    msg.p1, msg.p2, msg.sample = 4.5e5, 4.4e5, k
+    return msg
+
+
+def test_links_are_off_by_default_and_a_linked_node_is_a_plain_node(context):
+    assert process_links() is None
+    node = LinkedNode('plain', context=context)
+    pub = node.create_publisher(Pressures, 'p', SAMPLE_QOS)
+    assert type(pub).__name__ == 'Publisher'
+    node.destroy_node()
+
+
+def test_a_linked_message_is_a_call_in_the_publishing_thread(links, context):
+    source = LinkedNode('source', context=context)
+    sink = LinkedNode('sink', context=context)
+    got = []
+    sink.create_subscription(Pressures, 'pressures',
+                             lambda m: got.append((m, threading.get_ident())), SAMPLE_QOS)
+    pub = source.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
+    assert links.links() == ['/pressures: /source -> /sink']
+    msg = _sample(1)
+    pub.publish(msg)
+    assert got == [], 'nothing is delivered before the process opens its links'
+    links.open()
+    pub.publish(msg)
+    # delivered before publish() returned, in this thread, the very object: no executor, no DDS
+    assert got == [(msg, threading.get_ident())]
+    assert pub.get_subscription_count() == 1      # the linked one; none on DDS
+    source.destroy_node()
+    sink.destroy_node()
+
+
+def test_dds_carries_a_linked_topic_only_for_another_participant(links, context, ros_domain):
+    links.open()
+    node = LinkedNode('linked', context=context)
+    local = []
+    node.create_subscription(Pressures, 'pressures', local.append, SAMPLE_QOS)
+    pub = node.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
+    # the subscription created before its publisher lost its DDS subscription when it appeared
+    assert node.count_subscribers('/pressures') == 0
+    other = Context()                     # another participant, as another process would be
+    rclpy.init(context=other, domain_id=ros_domain)
+    try:
+        outside = rclpy.create_node('outside', context=other)
+        remote = []
+        outside.create_subscription(Pressures, '/pressures', remote.append, SAMPLE_QOS)
+        executor = make_executor(context=other)
+        executor.add_node(outside)
+        assert wait_until(lambda: pub.get_subscription_count() == 2, 10.0)
+        for k in range(1, 21):
+            pub.publish(_sample(k))
+        end = time.monotonic() + 10.0
+        while len(remote) < 20 and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        assert [m.sample for m in remote] == list(range(1, 21))
+        assert [m.sample for m in local] == list(range(1, 21)), 'each message once, directly'
+        executor.shutdown()
+    finally:
+        other.try_shutdown()
+    node.destroy_node()
+
+
+def test_the_linked_nodes_callbacks_run_one_at_a_time(links, context):
+    """A delivery from another thread (sim_node's sampler) and a timer of the executor's
+    thread never overlap: both hold the process's lock."""
+    links.open()
+    source = LinkedNode('source', context=context)
+    sink = LinkedNode('sink', context=context)
+    inside, overlaps, calls = [0], [0], [0]
+
+    def busy(*_):
+        calls[0] += 1
+        inside[0] += 1
+        overlaps[0] += inside[0] > 1
+        time.sleep(0.0005)
+        inside[0] -= 1
+    sink.create_subscription(Pressures, 'pressures', busy, SAMPLE_QOS)
+    sink.create_timer(0.005, busy)
+    pub = source.create_publisher(Pressures, 'pressures', SAMPLE_QOS)
+    executor = make_executor(context=context)
+    executor.add_node(sink)
+    stop = threading.Event()
+
+    def publisher():
+        k = 0
+        while not stop.is_set():
+            k += 1
+            pub.publish(_sample(k))
+            time.sleep(0.001)
+    thread = threading.Thread(target=publisher)
+    thread.start()
+    end = time.monotonic() + 1.0
+    from rclpy.task import Future
+    never = Future()
+    while time.monotonic() < end:
+        executor.spin_until_future_complete(never, timeout_sec=0.05)
+    stop.set()
+    thread.join()
+    executor.shutdown()
+    assert overlaps[0] == 0
+    assert calls[0] > 300, 'both callers ran'
+    source.destroy_node()
+    sink.destroy_node()
