@@ -4,7 +4,9 @@
 For each mode, in one run (so the figures compare on the same, possibly busy, machine):
   separate  every node its own process (pam-bringup's default: 4 processes per joint);
   composed  every node of every joint in one process (pam_container --namespace j1 .. jN), or
-            the joints split over --containers K processes (e.g. one per core).
+            the joints split over --containers K processes (e.g. one per core);
+  linked    composed, with the in-process links (pam_container --links, pam_common.links): the
+            1 kHz path between the nodes of one process as function calls.
 N joints are N complete stacks (sim_node, ukf_node, reference_node, pi_node) in namespaces
 /j1 .. /jN (/pam for one joint) with the parameters of pam_bringup/config/bringup.yaml, on a
 ROS domain of their own. After --warmup s the rigs' latency statistics are reset
@@ -15,7 +17,16 @@ ROS domain of their own. After --warmup s the rigs' latency statistics are reset
             figure for p99.9 and max);
   late      commands that arrived after the rig had taken the next sample (% of all);
   lost      samples lost on their way (gaps in the sample counter, counted by ukf_node and
-            pi_node), and periods the simulated rig skipped (it fell more than 10 periods behind);
+            pi_node), and the simulated rig's late samples (taken more than a period after
+            their deadline: the loop was not real time);
+  cost      CPU per sample (the process CPU over the window / the samples the rigs took) beside
+            the models' own compute per sample, measured in this process in the same run
+            (sim step + sample with the scenario's effects, UKF step with the stack's model and
+            extensions, PI step): the ratio is the stack's overhead, machine-independent enough
+            to compare across machines (the absolute CPU is not: 23 % on one machine of a kind,
+            81 % on another);
+--scenario NAME sets the simulated rig's scenario (default: bringup.yaml's), --identified DIR
+ukf_node's model (params.yaml, kappa.csv, extensions.yaml of a pam-identify output directory).
 --rig driver runs the driver path instead: per joint a pam-emulator (the DAQ board on a pty, its
 plant simulated) and driver_node, armed once the loop runs; the latency is then timed by
 driver_node (the host's end of the serial line). --hog N starts N CPU-bound processes
@@ -27,6 +38,7 @@ figures with and without the knobs come from one run.
 The only extra load is this script's /diagnostics subscription (about 1 Hz per node).
 
     .venv/bin/python benchmarks/stack_load.py [--joints 1] [--duration 20] [--hog 0] [--rig sim]
+        [--modes composed linked] [--scenario realistic] [--identified out/demo/identified]
 """
 
 from __future__ import annotations
@@ -57,13 +69,22 @@ def namespaces(joints: int) -> list[str]:
     return ['/pam'] if joints == 1 else [f'/j{k + 1}' for k in range(joints)]
 
 
-def params_file(folder: Path, ports: dict[str, str]) -> Path:
+def params_file(folder: Path, ports: dict[str, str], scenario: str | None = None,
+                identified: Path | None = None) -> Path:
     """bringup.yaml with its /pam/<node> sections keyed /**/<node> (every namespace), and each
-    namespace's driver_node port (`ports`: namespace -> serial port) in a section of its own."""
+    namespace's driver_node port (`ports`: namespace -> serial port) in a section of its own;
+    sim_node on `scenario` and ukf_node on the `identified` model if given."""
     data = yaml.safe_load(default_params_file().read_text())
     out = {('/**/' + key.rsplit('/', 1)[-1] if key.startswith('/pam/') else key): section
            for key, section in data.items()}
     out['/**/driver_node']['ros__parameters'].pop('port', None)
+    if scenario:
+        out['/**/sim_node']['ros__parameters']['mismatch'] = scenario
+    if identified is not None:
+        ukf = out['/**/ukf_node']['ros__parameters']
+        ukf['model_parameters'] = str(identified / 'params.yaml')
+        ukf['valve_map'] = str(identified / 'kappa.csv')
+        ukf['model_extensions'] = str(identified / 'extensions.yaml')
     for ns, port in ports.items():
         out[f'{ns}/driver_node'] = {'ros__parameters': {'port': port}}
     path = folder / 'stack_load_params.yaml'
@@ -95,13 +116,16 @@ def commands(mode: str, rig: str, spaces: list[str], params: Path,
     first (driver path)."""
     ros = ['--ros-args', '--params-file', str(params), *knobs]
     mode = mode.removesuffix('+rt')
+    links = ['--links'] if mode == 'linked' else []
+    mode = 'composed' if mode == 'linked' else mode
     boards = [(f'{ns} pam-emulator', [exe('pam-emulator', 'pam_driver'), '--link', ports[ns],
                                       '--initial-command', '5.5', '5.5'])
               for ns in spaces if rig == 'driver']
     if mode == 'composed':
         groups = [spaces[k::containers] for k in range(min(containers, len(spaces)))]
         return [*boards, *[(f"pam_container {' '.join(group)}",
-                            [exe('pam_container', 'pam_bringup'), '--rig', rig, '--namespace',
+                            [exe('pam_container', 'pam_bringup'), '--rig', rig, *links,
+                             '--namespace',
                              *group, *ros]) for group in groups]]
     return [*boards, *[(f'{ns}/{spec.name}', [exe(spec.name, spec.package), *ros[:1], '-r',
                                               f'__ns:={ns}', *ros[1:]])
@@ -151,8 +175,9 @@ def spin_until(executor, predicate, timeout: float) -> bool:
 def counters(diag: Diagnostics, spaces: list[str]) -> dict[str, float]:
     lost = sum(diag.value(f'{ns}/{n}', 'samples lost') for ns in spaces
                for n in ('ukf_node', 'pi_node'))
-    skipped = sum(diag.value(f'{ns}/sim_node', 'skipped periods') for ns in spaces)
-    return {'lost': lost, 'skipped': skipped}
+    late = sum(diag.value(f'{ns}/sim_node', 'late samples') for ns in spaces)
+    taken = sum(diag.value(f'{ns}/sim_node', 'samples taken') for ns in spaces)
+    return {'lost': lost, 'late samples': late, 'samples': taken}
 
 
 def call(node, executor, service: str) -> None:
@@ -227,7 +252,10 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
             'p99.9': worst('latency p99.9 (ms)'), 'max': worst('latency max (ms)'),
             'late %': 100.0 * late / timed if timed else math.nan, 'commands': timed,
             'lost': after['lost'] - before['lost'],
-            'skipped': after['skipped'] - before['skipped']}
+            'late samples': after['late samples'] - before['late samples'],
+            'cpu per sample': (sum(cpu1.values()) - sum(cpu0.values()))
+            / (after['samples'] - before['samples'])
+            if after['samples'] > before['samples'] else math.nan}
     finally:
         for _, p in procs:
             if p.poll() is None:
@@ -240,16 +268,65 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
                 p.wait()
 
 
+def kernels_per_sample(scenario: str | None, identified: Path | None,
+                       samples: int = 3000) -> dict[str, float]:
+    """The models' own compute per sample (s), measured here: the simulated rig's step and
+    sample (the scenario's plant and effects), the UKF step (the stack's model and
+    extensions), the PI step; each timed over `samples` steps after a warm-up."""
+    from pam_controller.pi import PiController, PiGains
+    from pam_estimator.pam_ukf import PamUkf
+    from pam_model.mismatch import load_scenario
+    from pam_model.model import PamModel
+    from pam_model.model_extensions import NO_EXTENSIONS, load_extensions
+    from pam_model.parameters import load_parameters
+    from pam_model.rig import SimulatedRig
+    from pam_model.valve_map import load_valve_map
+    stack = yaml.safe_load(default_params_file().read_text())
+    sim = stack['/pam/sim_node']['ros__parameters']
+    pi = stack['/pam/pi_node']['ros__parameters']
+    nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
+    plan = load_scenario(scenario or sim['mismatch'])
+    plant = PamModel(params=plan.apply(nominal.params), valve_map=nominal.valve_map)
+    x0 = sim['initial_state']
+    rig = SimulatedRig(plant, x0, plan.sensor, 0, tuple(sim['initial_command']),
+                       effects=plan.effects)
+    if identified is not None:
+        model = PamModel(params=load_parameters(identified / 'params.yaml'),
+                         valve_map=load_valve_map(identified / 'kappa.csv'))
+        extensions = load_extensions(identified / 'extensions.yaml')
+    else:
+        model, extensions = nominal, NO_EXTENSIONS
+    ukf = PamUkf(model=model, x0=tuple(x0), extensions=extensions)
+    controller = PiController(PiGains(pi['kp_angle'], pi['ki_angle'], pi['beta'], pi['u_min'],
+                                      pi['u_max']))
+    u = tuple(sim['initial_command'])
+
+    def timed(step) -> float:
+        for _ in range(200):
+            step()
+        t0 = time.perf_counter()
+        for _ in range(samples):
+            step()
+        return (time.perf_counter() - t0) / samples
+
+    def rig_step():
+        rig.step()
+        rig.sample()
+    p = rig.sample().p_measured
+    return {'sim': timed(rig_step), 'ukf': timed(lambda: ukf.step(p, u)),
+            'pi': timed(lambda: controller.step(0.01, 1e-3))}
+
+
 def print_results(results: list[dict], joints: int, hogs: int, duration: float,
                   rig: str) -> None:
     print(f'\n{joints} joint(s) at 1 kHz ({rig} rig), {hogs} CPU-bound process(es) beside, '
           f'window {duration:g} s; latency at the rig (worst joint), CPU in % of one core')
     print(f"{'mode':<11} {'procs':>5} {'CPU %':>7} {'p50 ms':>7} {'p99 ms':>7} {'p99.9 ms':>8} "
-          f"{'max ms':>7} {'late %':>7} {'lost':>5} {'skipped':>7} {'commands':>9}")
+          f"{'max ms':>7} {'late %':>7} {'lost':>5} {'late smp':>8} {'commands':>9}")
     for r in results:
         print(f"{r['mode']:<11} {r['processes']:>5} {r['cpu total']:>7.1f} {r['p50']:>7.3f} "
               f"{r['p99']:>7.3f} {r['p99.9']:>8.3f} {r['max']:>7.2f} {r['late %']:>7.2f} "
-              f"{r['lost']:>5.0f} {r['skipped']:>7.0f} {r['commands']:>9.0f}")
+              f"{r['lost']:>5.0f} {r['late samples']:>8.0f} {r['commands']:>9.0f}")
     for r in results:
         print(f"  {r['mode']} CPU per process: "
               + ', '.join(f'{label} {c:.1f}' for label, c in r['cpu'].items()))
@@ -264,7 +341,8 @@ def main(argv=None) -> int:
     parser.add_argument('--hog', type=int, default=0, metavar='N',
                         help='N CPU-bound processes beside the stack')
     parser.add_argument('--modes', nargs='+',
-                        choices=['separate', 'composed', 'separate+rt', 'composed+rt'],
+                        choices=['separate', 'composed', 'linked', 'separate+rt',
+                                 'composed+rt', 'linked+rt'],
                         help='default: separate composed, and composed+rt with --hog')
     parser.add_argument('--containers', type=int, default=1, metavar='K',
                         help='composed modes: the joints split over K pam_container processes '
@@ -277,6 +355,11 @@ def main(argv=None) -> int:
                         help='lock_memory in the +rt modes')
     parser.add_argument('--rig', choices=['sim', 'driver'], default='sim',
                         help='sim: sim_node; driver: pam-emulator + driver_node (default sim)')
+    parser.add_argument('--scenario', metavar='NAME',
+                        help="the simulated rig's scenario (default: bringup.yaml's)")
+    parser.add_argument('--identified', type=Path, metavar='DIR',
+                        help="ukf_node's model: a pam-identify output directory (params.yaml, "
+                             'kappa.csv, extensions.yaml; default: the nominal model)')
     args = parser.parse_args(argv)
     if args.joints < 1 or args.duration <= 0 or args.warmup < 0 or args.hog < 0 or \
             args.containers < 1:
@@ -301,7 +384,7 @@ def main(argv=None) -> int:
     try:
         with tempfile.TemporaryDirectory() as folder:
             ports = {ns: str(Path(folder) / f'daq{k}') for k, ns in enumerate(spaces)}
-            params = params_file(Path(folder), ports)
+            params = params_file(Path(folder), ports, args.scenario, args.identified)
             for mode in args.modes:
                 diag.latest.clear()
                 results.append(run_mode(mode, args.rig, spaces, params, ports, args, node,
@@ -314,6 +397,15 @@ def main(argv=None) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
     print_results(results, args.joints, args.hog, args.duration, args.rig)
+    if args.rig == 'sim':
+        kernels = kernels_per_sample(args.scenario, args.identified)
+        total = sum(kernels.values())
+        print(f"\nthe models' own compute per sample, measured now in this process: sim step "
+              f"{kernels['sim'] * 1e6:.1f} us + UKF step {kernels['ukf'] * 1e6:.1f} us + PI "
+              f"{kernels['pi'] * 1e6:.1f} us = {total * 1e6:.1f} us")
+        for r in results:
+            print(f"  {r['mode']}: stack CPU per sample {r['cpu per sample'] * 1e6:.1f} us = "
+                  f"{r['cpu per sample'] / total:.1f} x the models' compute")
     return 0
 
 

@@ -88,12 +88,23 @@ class DemoPaths:
         self.logs.mkdir(parents=True, exist_ok=True)
 
 
+#: SCHED_FIFO priority of the real-time run's threads on the 1 kHz path (the real-time knobs,
+#: docs/realtime.md): granted to root or with an rtprio limit; refused, the nodes say so and
+#: run at normal scheduling, and the run's health decides whether its figures are results
+REALTIME_PRIORITY = 80
+#: the nodes of the real-time run that take the real-time knobs
+REALTIME_NODES = ('sim_node', 'ukf_node', 'pi_node', 'reference_node')
+
+
 def run_params(base: dict, scenario: str, identified: Path | None) -> dict:
     """The stack's parameter file for one run: base (config/bringup.yaml's content) with the
-    simulated rig on `scenario` and, for the identified run, ukf_node on the identified model
-    (params.yaml, kappa.csv, extensions.yaml of pam-identify's output directory: it always
-    writes all three)."""
+    simulated rig on `scenario`, the real-time knobs on (REALTIME_PRIORITY) and, for the
+    identified run, ukf_node on the identified model (params.yaml, kappa.csv, extensions.yaml
+    of pam-identify's output directory: it always writes all three)."""
     data = json.loads(json.dumps(base))          # a deep copy of plain YAML data
+    for node in REALTIME_NODES:
+        data.setdefault(f'/pam/{node}', {}).setdefault('ros__parameters', {})[
+            'thread_priority'] = REALTIME_PRIORITY
     sim = data.setdefault('/pam/sim_node', {}).setdefault('ros__parameters', {})
     sim['mismatch'] = scenario
     if identified is not None:
