@@ -89,6 +89,10 @@ def parse_args(argv):
                       help='every node a process of its own: a crash or a hang stays in its '
                            'process, each node gets its own log prefix and log file')
     parser.set_defaults(separate=False)
+    parser.add_argument('--rig-apart', action='store_true',
+                        help='composed: the rig in a process of its own (as the hardware of a '
+                             'real rig is), the other nodes composed: the simulated plant and '
+                             'the stack then run on two cores (docs/composition.md)')
     parser.add_argument('--links', action='store_true',
                         help='composed: the 1 kHz path between the composed nodes as function '
                              'calls (in-process links), about a quarter of the CPU; a publisher '
@@ -126,6 +130,8 @@ def parse_args(argv):
         parser.error(f'--duration must be > 0 s, got {args.duration:g}')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         parser.error(f'--domain-id must be in 0..232, got {args.domain_id}')
+    if args.separate and (args.rig_apart or args.links):
+        parser.error('--rig-apart and --links are options of the composed mode, not --separate')
     try:
         args.namespace = normal_namespace(args.namespace)
     except ValueError:
@@ -150,7 +156,8 @@ def main(argv=None) -> int:
         missing = not (args.params_file or params_file.exists())
         return error(problem + (' (run `make setup`, or pass --params-file)' if missing else ''))
     try:
-        executables = locate_executables(nodes if args.separate else [CONTAINER])
+        executables = locate_executables(
+            nodes if args.separate else [nodes[0], CONTAINER] if args.rig_apart else [CONTAINER])
     except MissingExecutable as exc:
         return error(str(exc))
     with tempfile.TemporaryDirectory(prefix=f'{PROG}-') as run_dir:
@@ -177,8 +184,14 @@ def run(args, nodes, executables: dict[str, str], params: StackParams) -> int:
     if not args.separate:
         argv = node_argv(executables[CONTAINER.name], args.namespace, params.file)
         argv[1:1] = container_options(args.rig, reference=not args.no_reference,
-                                      controller=not args.no_controller, links=args.links)
-        children = [Child(CONTAINER.name, argv, ', '.join(n.name for n in nodes))]
+                                      controller=not args.no_controller, links=args.links,
+                                      with_rig=not args.rig_apart)
+        composed = nodes[1:] if args.rig_apart else nodes
+        children = [Child(CONTAINER.name, argv, ', '.join(n.name for n in composed))]
+        if args.rig_apart:
+            rig = nodes[0]
+            children.insert(0, Child(rig.name, node_argv(executables[rig.name], args.namespace,
+                                                         params.file), rig.role))
     else:
         children = [Child(node.name, node_argv(executables[node.name], args.namespace,
                                                params.file), node.role) for node in nodes]

@@ -46,8 +46,8 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f'{PROG} [-h] [--rig {{{",".join(sorted(RIGS))}}}] [--no-reference] '
-              '[--no-controller] [--links] [--namespace NS [NS ...]] [--params-file FILE] '
-              '[--ros-args ...]',
+              '[--no-controller] [--no-rig] [--links] [--namespace NS [NS ...]] '
+              '[--params-file FILE] [--ros-args ...]',
         description='The nodes of the PAM stack (the rig, ukf_node, reference_node, pi_node) '
                     'composed in one process on one executor: the same node classes, topics, '
                     'parameters, services and diagnostics as the separate executables. With '
@@ -63,6 +63,9 @@ def parser() -> argparse.ArgumentParser:
                    help='sim: sim_node, the simulated rig; driver: driver_node (default sim)')
     p.add_argument('--no-reference', action='store_true', help='without reference_node')
     p.add_argument('--no-controller', action='store_true', help='without pi_node')
+    p.add_argument('--no-rig', action='store_true',
+                   help='without the rig: it runs in a process of its own (pam-bringup '
+                        '--rig-apart), as the hardware of a real rig does')
     p.add_argument('--links', action='store_true',
                    help='in-process links: a message between two nodes of this process is '
                         'handed to the subscriber as a function call (no DDS, no '
@@ -96,7 +99,7 @@ def main(argv=None) -> int:
     if namespaces and any('__ns:=' in a for a in ros_args):
         p.error('-r __ns:= and --namespace both set the namespace: use one of them')
     specs = stack_nodes(args.rig, reference=not args.no_reference,
-                        controller=not args.no_controller)
+                        controller=not args.no_controller, with_rig=not args.no_rig)
     remapped = [a.split(':=', 1)[1] for a in ros_args if a.startswith('__ns:=')]
     links = enable_links() if args.links else None
     with tempfile.TemporaryDirectory(prefix=f'{PROG}-') as run_dir:

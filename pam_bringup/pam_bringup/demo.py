@@ -278,9 +278,11 @@ def track(args, exe, paths: DemoPaths, params: dict, env: dict, steps: Steps):
     print(f'demo: 4/4 real-time sensor-less tracking with the {run} model, '
           f'{args.duration:g} s ...', flush=True)
     (paths.logs / run).mkdir(parents=True, exist_ok=True)
-    # composed with in-process links: the 1 kHz path as calls (pam_common.links), about a
-    # quarter of the CPU of DDS between the nodes of one process
-    stack = Child(f'bringup_{run}', [exe['pam-bringup'], '--links', '--namespace', f'/{run}',
+    # the simulated rig in a process of its own, as a real rig's hardware is (its plant and the
+    # stack on two cores), the other nodes composed with in-process links (pam_common.links:
+    # the estimate -> command path as calls, not DDS messages)
+    stack = Child(f'bringup_{run}', [exe['pam-bringup'], '--rig-apart', '--links',
+                                     '--namespace', f'/{run}',
                                      '--params-file', str(params[run]), '--log-dir',
                                      str(paths.logs / run)], f'the {run} stack')
     supervisor = Supervisor([stack], env, Output(PROG, [stack.name], False, echo=False),

@@ -41,12 +41,13 @@ CONTAINER = NodeSpec('pam_container', PACKAGE, 'the stack, composed')
 
 
 def stack_nodes(rig: str = 'sim', reference: bool = True,
-                controller: bool = True) -> list[NodeSpec]:
-    """The nodes to start, in start order: the rig (RIGS[rig]), ukf_node, reference_node (if
-    `reference`), pi_node (if `controller`). ValueError for an unknown rig."""
+                controller: bool = True, with_rig: bool = True) -> list[NodeSpec]:
+    """The nodes to start, in start order: the rig (RIGS[rig], if `with_rig`), ukf_node,
+    reference_node (if `reference`), pi_node (if `controller`). ValueError for an unknown
+    rig."""
     if rig not in RIGS:
         raise ValueError(f"unknown rig {rig!r}: one of {', '.join(sorted(RIGS))}")
-    nodes = [RIGS[rig], ESTIMATOR]
+    nodes = [RIGS[rig], ESTIMATOR] if with_rig else [ESTIMATOR]
     if reference:
         nodes.append(REFERENCE)
     if controller:
@@ -69,10 +70,12 @@ def normal_namespace(text: str) -> str:
 
 
 def container_options(rig: str = 'sim', reference: bool = True,
-                      controller: bool = True, links: bool = False) -> list[str]:
+                      controller: bool = True, links: bool = False,
+                      with_rig: bool = True) -> list[str]:
     """pam_container's options for the stack_nodes() of these arguments."""
     return (['--rig', rig] + ([] if reference else ['--no-reference'])
-            + ([] if controller else ['--no-controller']) + (['--links'] if links else []))
+            + ([] if controller else ['--no-controller']) + (['--links'] if links else [])
+            + ([] if with_rig else ['--no-rig']))
 
 
 def every_node() -> list[NodeSpec]:

@@ -347,3 +347,33 @@ def test_composed_driver_stack_is_armed_and_runs(node_process, probe, ros_domain
     assert any('4 nodes in one process: /pam/driver_node, /pam/ukf_node, /pam/reference_node, '
                '/pam/pi_node' in line for line in prefixed(out, 'pam_container')), out
     assert emulator.alive()
+
+
+# ---------------------------------------------------------------------------- --rig-apart --links
+def test_rig_apart_with_links_closes_the_loop_in_two_processes(node_process, probe, ros_domain):
+    """pam-bringup --rig-apart --links: sim_node in a process of its own, the other nodes
+    composed with in-process links; the loop closes over DDS between the two (pressures out,
+    valve_command back), the linked topics still reach this other process, and the container
+    logs its links."""
+    commands = probe.subscribe(ValveCommand, '/pam/valve_command')
+    estimates = probe.subscribe(JointEstimate, '/pam/estimate')
+    run = bringup(node_process, ros_domain, '--composed', '--rig-apart', '--links')
+    run.wait_for(lambda: len(commands) > 0 and len(estimates) > 0, STARTUP_TIMEOUT,
+                 'the first /pam/valve_command and /pam/estimate')
+    time.sleep(SETTLE + 2.0 * WINDOW)
+    rate = stamp_rate(commands, WINDOW)
+    assert rate >= MIN_RATE, f'/pam/valve_command at {rate:.0f} Hz (by stamp)'
+    run.proc.send_signal(signal.SIGINT)
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    out = run.stdout
+    assert_clean_exit(code, out + run.stderr)
+    assert set(started_pids(out)) == {'sim_node', 'pam_container'}, out
+    assert 'in-process link /pam/estimate: /pam/ukf_node -> /pam/pi_node' in out, out
+    assert 'in-process link /pam/pressures' not in out, 'the rig is not in the container'
+
+
+def test_rig_apart_and_links_are_options_of_the_composed_mode(ros_domain):
+    run = subprocess.run([executable('pam-bringup', 'pam_bringup'), '--separate', '--links'],
+                         capture_output=True, text=True, timeout=30)
+    assert run.returncode == 2
+    assert 'options of the composed mode' in run.stderr.splitlines()[-1], run.stderr

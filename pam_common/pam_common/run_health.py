@@ -176,8 +176,8 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
             reasons.append(f'{lost} of {expected} samples lost at the report '
                            f'({100.0 * lost / expected:.2f} % > '
                            f'{100.0 * limits.max_lost_fraction:g} %)')
-    else:
-        notes.append('no sample counter received: samples lost at the report')
+    else:       # no estimate: the loop never ran, whatever the rig says
+        reasons.append('no estimate received: the loop did not run')
     if rig is not None:
         if _known(taken) and taken > 0 and _known(late):
             if late / taken > limits.max_late_fraction:

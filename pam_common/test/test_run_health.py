@@ -107,3 +107,12 @@ def test_number_parses_safely():
 def test_bad_limits_are_refused(bad):
     with pytest.raises(ValueError, match='HealthLimits'):
         HealthLimits(**bad)
+
+
+def test_a_run_without_any_estimate_is_invalid():
+    """A clean rig but no estimate at all (the estimator never ran): not a result."""
+    rig = {'samples taken': 30000, 'late samples': 0, 'worst stall (ms)': 0.5,
+           'commands timed': 0, 'commands after the next sample': 0}
+    health = judge_run(rig, received=0, expected=0)
+    assert not health.valid
+    assert any('no estimate received' in r for r in health.reasons), health.reasons
