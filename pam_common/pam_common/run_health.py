@@ -179,32 +179,28 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
     else:       # no estimate: the loop never ran, whatever the rig says
         reasons.append('no estimate received: the loop did not run')
     if rig is not None:
-        if _known(taken) and taken > 0 and _known(late):
-            if late / taken > limits.max_late_fraction:
-                reasons.append(f'{late:.0f} of {taken:.0f} rig samples late '
-                               f'({100.0 * late / taken:.2f} % > '
-                               f'{100.0 * limits.max_late_fraction:g} %)')
-        else:
-            notes.append("the rig publishes no 'samples taken' / 'late samples': late samples")
-        if _known(stall):
-            if stall > limits.max_worst_stall:
-                reasons.append(f'worst stall {_ms(stall)} ms > '
-                               f'{limits.max_worst_stall * 1e3:g} ms')
-        else:
-            notes.append("the rig publishes no 'worst stall (ms)': worst stall")
-        if _known(p99):
-            if p99 > limits.max_latency_p99:
-                reasons.append(f'sample -> command latency p99 {_ms(p99)} ms > '
-                               f'{limits.max_latency_p99 * 1e3:g} ms')
-        else:
-            notes.append('no command latency at the rig: sample -> command latency')
-        if _known(timed) and timed > 0 and _known(late_commands):
-            if late_commands / timed > limits.max_late_command_fraction:
-                reasons.append(f'{late_commands:.0f} of {timed:.0f} commands after the next '
-                               f'sample ({100.0 * late_commands / timed:.1f} % > '
-                               f'{100.0 * limits.max_late_command_fraction:g} %)')
-        else:
-            notes.append('no command timed at the rig: commands after the next sample')
+        fraction_checks = (
+            (late, taken, limits.max_late_fraction, 'rig samples late',
+             "the rig publishes no 'samples taken' / 'late samples': late samples"),
+            (late_commands, timed, limits.max_late_command_fraction,
+             'commands after the next sample',
+             'no command timed at the rig: commands after the next sample'))
+        for part, whole, limit, what, missing in fraction_checks:
+            if _known(whole) and whole > 0 and _known(part):
+                if part / whole > limit:
+                    reasons.append(f'{part:.0f} of {whole:.0f} {what} ({100.0 * part / whole:.2f}'
+                                   f' % > {100.0 * limit:g} %)')
+            else:
+                notes.append(missing)
+        time_checks = ((stall, limits.max_worst_stall, 'worst stall',
+                        "the rig publishes no 'worst stall (ms)': worst stall"),
+                       (p99, limits.max_latency_p99, 'sample -> command latency p99',
+                        'no command latency at the rig: sample -> command latency'))
+        for value, limit, what, missing in time_checks:
+            if not _known(value):
+                notes.append(missing)
+            elif value > limit:
+                reasons.append(f'{what} {_ms(value)} ms > {limit * 1e3:g} ms')
     return RunHealth(samples_sent=expected, samples_received=received, samples_lost=lost,
                      samples_taken=taken, late_samples=late, worst_stall=stall,
                      latency_p50=p50, latency_p99=p99, latency_max=worst_latency,

@@ -41,7 +41,7 @@ def test_numbers_are_taken_as_well_as_strings():
     ({'worst stall (ms)': '35'}, 64001, 'worst stall 35.0 ms > 20 ms'),
     ({'latency p99 (ms)': '2.5'}, 64001, 'sample -> command latency p99 2.5 ms > 2 ms'),
     ({'commands after the next sample': '6400'}, 64001,
-     '6400 of 64000 commands after the next sample (10.0 % > 5 %)'),
+     '6400 of 64000 commands after the next sample (10.00 % > 5 %)'),
     ({}, 63000, '1001 of 64001 samples lost at the report (1.56 % > 1 %)'),
 ])
 def test_each_broken_threshold_gives_one_reason_with_figure_and_limit(change, received,
