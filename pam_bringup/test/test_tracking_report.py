@@ -151,6 +151,7 @@ def test_start_at_the_first_step_records_whole_holds(node_process, probe):
     report, references, truth = started_report(node_process, probe, 'duration:=2.0',
                                                'start:=step', 'transient:=0.0')
     fake_rig = FakeRig(probe, CLEAN_RIG)
+    estimates = probe.publisher(JointEstimate, '/pam/estimate')   # the loop ran: its counters
     k = 0
     end = time.monotonic() + 60.0
     while report.alive() and time.monotonic() < end and k <= 3500:
@@ -163,6 +164,9 @@ def test_start_at_the_first_step_records_whole_holds(node_process, probe):
         msg = JointMeasurement(angle=0.0 if k < 1000 else 0.2 - 0.1 * math.exp(-(k - 1000) / 50))
         msg.header.stamp = stamp
         truth.publish(msg)
+        estimate = JointEstimate(angle=msg.angle, sample=k + 1)
+        estimate.header.stamp = stamp
+        estimates.publish(estimate)
         k += 1
         time.sleep(0.0005)
     code = report.wait_exit(30.0)
