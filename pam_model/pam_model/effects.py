@@ -53,7 +53,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from . import effects_physics
-from .physics import gas_constants, inflow_per_area, valve_opening
+from .physics import gas_constants, valve_opening
 from .valve_voltage import U_MAX, U_MIN
 
 HYSTERESIS_PRESSURE = 5.0e5  # Pa abs, the pressure at which hysteresis_band is given
@@ -189,14 +189,17 @@ class MaxwellSlip:
 
     def update(self, s, P) -> np.ndarray:
         """Move every element with inputs s (count,) N at pressures P (count,) Pa; the forces
-        F_h (count,) N. The first call starts every element relaxed (F_h = 0)."""
-        s = np.asarray(s, dtype=float).reshape(self.count, 1)
+        F_h (count,) N. The first call starts every element relaxed (F_h = 0). One compiled
+        kernel (effects_physics.maxwell_slip_update): the 1 kHz path of the simulated rig and
+        of the UKF calls it every sample."""
+        s = np.asarray(s, dtype=float).reshape(self.count)
         if self.anchor is None:
-            self.anchor = np.repeat(s, self.slip.size, axis=1)
-        limit = self.slip * self.pressure_scale(P).reshape(self.count, 1)
-        force = np.clip(self.stiffness * (s - self.anchor), -limit, limit)
-        self.anchor = s - force / self.stiffness
-        return force.sum(axis=1)
+            self.anchor = np.repeat(s.reshape(self.count, 1), self.slip.size, axis=1)
+        force = np.empty(self.count)
+        effects_physics.maxwell_slip_update(s, np.asarray(P, dtype=float), self.slip,
+                                            self.stiffness, self.p_out, HYSTERESIS_PRESSURE,
+                                            self.anchor, force)
+        return force
 
 
 class ValveLag:
@@ -214,13 +217,14 @@ class ValveLag:
 
     def openings(self, u) -> tuple[float, float]:
         """Openings alpha (2,) over the coming step for the held (sanitised) voltages u (V);
-        advances the lag by one step."""
+        advances the lag by one step. Plain floats: two numbers per valve, no array needed."""
         vm = self.valve_map
-        u = np.asarray(u, dtype=float)
-        mean = u + (self.u_filtered - u) * self.mean_weight
-        self.u_filtered = u + (self.u_filtered - u) * self.decay
-        return (valve_opening(float(mean[0]), vm.u, vm.alpha),
-                valve_opening(float(mean[1]), vm.u, vm.alpha))
+        u0, u1 = float(u[0]), float(u[1])
+        f0, f1 = float(self.u_filtered[0]), float(self.u_filtered[1])
+        mean0 = u0 + (f0 - u0) * self.mean_weight
+        mean1 = u1 + (f1 - u1) * self.mean_weight
+        self.u_filtered = np.array((u0 + (f0 - u0) * self.decay, u1 + (f1 - u1) * self.decay))
+        return (valve_opening(mean0, vm.u, vm.alpha), valve_opening(mean1, vm.u, vm.alpha))
 
 
 class EffectsPlant:
@@ -259,10 +263,7 @@ class EffectsPlant:
         P_tank = self.P_tank0
         if e.supply_droop > 0.0:
             self.record['P_tank'], self.record['T'] = self.P_tank0, T
-            record = self.record[0]
-            g = gas_constants(record)
-            inflow = sum(alpha[i] * (record['A1_1'] if i == 0 else record['A1_2'])
-                         * inflow_per_area(P[i], record, g) for i in range(2))
+            inflow = effects_physics.supply_inflow(P[0], P[1], alpha[0], alpha[1], self.record)
             P_tank -= e.supply_droop * inflow / self.m_ref
         if e.supply_ripple > 0.0:
             P_tank += e.supply_ripple * math.sin(2.0 * math.pi * e.supply_ripple_frequency * t)

@@ -16,6 +16,7 @@ what ``physics.rk4_step`` computes. The paper's model (``physics.py``) is untouc
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .model_choices import FrictionLaw
@@ -23,6 +24,7 @@ from .physics import (
     clamp_state,
     friction_from_forces,
     gas_constants,
+    inflow_per_area,
     joint_torque,
     mass_flow,
     muscle_forces,
@@ -106,3 +108,63 @@ def step_with_effects(x, alpha1, alpha2, h, p_array, friction_law, force_model, 
     x_next[2] = P1 + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
     x_next[3] = P2 + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
     return T_f, sigma
+
+
+@njit(cache=True)
+def supply_inflow(P1, P2, alpha1, alpha2, p_array):
+    """Mass flow (kg/s) the two valves draw from the supply tank over a step from muscle
+    pressures P1, P2 (Pa) with openings alpha1, alpha2, at the P_tank and T of the record
+    p_array[0]: alpha_i A1_i m_in tilde(P_i) summed (the supply droop's load)."""
+    p = p_array[0]
+    g = gas_constants(p)
+    return (0.0 + alpha1 * p.A1_1 * inflow_per_area(P1, p, g)
+            + alpha2 * p.A1_2 * inflow_per_area(P2, p, g))
+
+
+@njit(cache=True)
+def ordered_sum(values, n):
+    """values[0] + ... + values[n-1] added as numpy's sum adds them (numpy 2: one by one below 8
+    terms; eight running sums, combined pairwise, from 8 to 128 terms), so that a kernel gives
+    what the array form gives, bit for bit."""
+    if n < 8:
+        total = 0.0
+        for j in range(n):
+            total += values[j]
+        return total
+    r0, r1, r2, r3 = values[0], values[1], values[2], values[3]
+    r4, r5, r6, r7 = values[4], values[5], values[6], values[7]
+    j = 8
+    while j + 8 <= n:
+        r0 += values[j]
+        r1 += values[j + 1]
+        r2 += values[j + 2]
+        r3 += values[j + 3]
+        r4 += values[j + 4]
+        r5 += values[j + 5]
+        r6 += values[j + 6]
+        r7 += values[j + 7]
+        j += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while j < n:
+        total += values[j]
+        j += 1
+    return total
+
+
+@njit(cache=True)
+def maxwell_slip_update(s, P, slip, stiffness, p_out, p_band, anchor, force):
+    """One sample of Maxwell-slip hysteresis for each muscle i (pam_model.effects.MaxwellSlip):
+    element j with stiffness k_j (N/N) and slip force f_j c(P_i) (N), c(P) = max(P - P_out, 0) /
+    (p_band - P_out), moves with the input s_i (N): F_ij = clip(k_j (s_i - a_ij), -f_j c, f_j c),
+    its anchor a_ij = s_i - F_ij / k_j; force[i] = sum_j F_ij (N, summed as numpy sums:
+    ordered_sum). anchor (count, n) and force (count,) are updated in place."""
+    count, n = anchor.shape
+    element = np.empty(n)
+    for i in range(count):
+        c = max(P[i] - p_out, 0.0) / (p_band - p_out)
+        for j in range(n):
+            limit = slip[j] * c
+            f = min(max(stiffness[j] * (s[i] - anchor[i, j]), -limit), limit)
+            anchor[i, j] = s[i] - f / stiffness[j]
+            element[j] = f
+        force[i] = ordered_sum(element, n)
