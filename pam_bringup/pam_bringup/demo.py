@@ -278,10 +278,10 @@ def track(args, exe, paths: DemoPaths, params: dict, env: dict, steps: Steps):
     print(f'demo: 4/4 real-time sensor-less tracking with the {run} model, '
           f'{args.duration:g} s ...', flush=True)
     (paths.logs / run).mkdir(parents=True, exist_ok=True)
-    # the simulated rig in a process of its own, as a real rig's hardware is (its plant and the
-    # stack on two cores), the other nodes composed with in-process links (pam_common.links:
-    # the estimate -> command path as calls, not DDS messages)
-    stack = Child(f'bringup_{run}', [exe['pam-bringup'], '--rig-apart', '--links',
+    # composed with in-process links (pam_common.links): rig -> UKF -> PI -> command as calls
+    # in the rig's sampling thread; measured here closer to real time than the rig apart
+    # (--rig-apart: two processes, but a DDS round trip and two interpreters per sample)
+    stack = Child(f'bringup_{run}', [exe['pam-bringup'], '--links',
                                      '--namespace', f'/{run}',
                                      '--params-file', str(params[run]), '--log-dir',
                                      str(paths.logs / run)], f'the {run} stack')

@@ -27,13 +27,17 @@ Trade-offs, chosen and written down (docs/composition.md):
   delivery runs in the publisher's thread (e.g. sim_node's sampler), so without it two threads
   could run one node's callbacks at once, which a single-threaded executor never does;
 - the subscriber receives the publisher's message object, not a copy: a publisher must not
-  change a message after publishing it (the stack's nodes build a new message per sample).
+  change a message after publishing it (the stack's nodes build a new message per sample);
+- whether another process subscribes is asked of DDS at most every RECOUNT_PERIOD (the count
+  costs a few us, and a linked publisher asks it with every message): a subscription of another
+  process gets its first messages up to that long after it matched (discovery takes longer).
 """
 
 from __future__ import annotations
 
 import functools
 import threading
+import time
 from collections.abc import Callable
 
 from rclpy.node import Node
@@ -41,6 +45,7 @@ from rclpy.node import Node
 __all__ = ['LinkedNode', 'ProcessLinks', 'disable_links', 'enable_links', 'process_links']
 
 _ACTIVE: list[ProcessLinks] = []      # the process's links once enabled (one at most)
+RECOUNT_PERIOD = 0.1                  # s between two counts of a topic's other-process readers
 
 
 def enable_links() -> ProcessLinks:
@@ -94,17 +99,28 @@ class LinkedPublisher:
         self._lock = links.lock
         self.topic_name = publisher.topic_name
         self.msg_type = publisher.msg_type
+        self._outside = 0               # subscriptions of other processes, last counted
+        self._recount_at = 0.0          # time.monotonic() of the next count
+
+    def outside_subscriptions(self) -> int:
+        """The subscriptions of other processes (on DDS), counted at most every
+        RECOUNT_PERIOD."""
+        now = time.monotonic()
+        if now >= self._recount_at:
+            self._outside = self._publisher.get_subscription_count()
+            self._recount_at = now + RECOUNT_PERIOD
+        return self._outside
 
     def get_subscription_count(self) -> int:
         """Subscriptions on DDS (other processes) plus the linked ones of this process."""
-        return self._publisher.get_subscription_count() + len(self._local)
+        return self.outside_subscriptions() + len(self._local)
 
     def publish(self, msg) -> None:
         if self._local and self._links.is_open:
             with self._lock:
                 for subscription in self._local:
                     subscription.callback(msg)
-        if self._publisher.get_subscription_count():
+        if self.outside_subscriptions():
             self._publisher.publish(msg)
 
     def __getattr__(self, name):
