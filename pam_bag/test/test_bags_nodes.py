@@ -48,10 +48,11 @@ def test_record_sim_node(node_process, tmp_path_factory):
                   for c, _, raw in reader.messages(connections=conns)]
         duration = reader.duration * 1e-9
     assert duration >= RECORD_S - 0.5
-    # realtime sim_node skips periods when the machine stalls it (pam_common.timing), so the
-    # count is only bounded here; loss at 4 topics x 1 kHz is measured by
-    # benchmarks/bag_throughput.py, which compares published and recorded counts
-    assert 0.6 * 1000 * duration < len(stamps) < 1000 * duration + 20
+    # realtime sim_node stamps sample k at its deadline, start + k ms, and catches up a stall
+    # in a burst (it never pauses): the recorded samples span len - 1 ms of stamps when none is
+    # lost; loss at 4 topics x 1 kHz is measured by benchmarks/bag_throughput.py
+    span_ms = (stamps[-1] - stamps[0]) / 1e6
+    assert 0.6 * 1000 * duration < len(stamps) <= span_ms + 1.01, (len(stamps), span_ms)
     steps = [b - a for a, b in itertools.pairwise(stamps)]
     # realtime sim_node stamps with the wall clock (jitter of a loaded machine): check order
     assert min(steps) > 0, 'pressure samples reordered'

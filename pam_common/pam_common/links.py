@@ -205,6 +205,11 @@ class LinkedNode(Node):
             callback = links.serialised(callback)
         return super().create_timer(timer_period_sec, callback, *args, **kwargs)
 
+    def create_plain_timer(self, timer_period_sec, callback):
+        """rclpy's timer, never under the process's lock: for a callback that takes the lock
+        itself only around what needs it (DiagnosticsPublisher)."""
+        return super().create_timer(timer_period_sec, callback)
+
     def create_service(self, srv_type, srv_name, callback, *args, **kwargs):
         links = process_links()
         if links is not None:

@@ -98,9 +98,12 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('rate', 1000.0, 'double', 'Hz',
               'Sample rate; the model step is h = 1/rate.', range=RATE_RANGE),
     ParamSpec('max_catch_up', 10, 'integer', 'periods',
-              'Deprecated, no effect (kept so that old parameter files load): the simulated '
-              'rig never pauses; when its sampling thread wakes up late, every overdue sample '
-              'is taken back to back with the held command and counted as a late sample.',
+              'Realtime only: the simulated rig never pauses; when its sampling thread wakes up '
+              'late, up to this many overdue samples are taken and published back to back '
+              '(late samples); after a longer stall the plant steps through all of them with '
+              'the held command without publishing them (missed samples: a gap in the sample '
+              'counter) and publishes the newest. Either way the run was not real time, and '
+              'the rig says so on /diagnostics.',
               range=CATCH_UP_RANGE),
     ParamSpec('publish_supply_pressure', False, 'bool', '',
               "Publish supply_pressure (sensor_msgs/FluidPressure, Pa abs): the plant's supply "
@@ -285,10 +288,8 @@ def describe(config: SimConfig) -> list[str]:
     timing = (f"timing: {v['timing']} at {v['rate']:g} Hz (model step h = {1e3 / v['rate']:g} ms)"
               + ('; /clock published' if v['publish_clock'] else ''))
     if v['timing'] == 'realtime':
-        timing += ('; the plant never pauses: overdue samples are caught up with the held '
-                   'command and counted as late')
-        if v['max_catch_up'] != 10:
-            timing += '; max_catch_up is deprecated and has no effect'
+        timing += (f"; the plant never pauses: up to {v['max_catch_up']} overdue samples are "
+                   'caught up, a longer backlog stepped through unpublished (missed)')
     if v['timing'] == 'lockstep':
         timing += (f"; re-publish after {v['lockstep_timeout']:g} s without a command"
                    if v['lockstep_timeout'] > 0 else '; never re-publish')

@@ -40,10 +40,14 @@ with the deadline's time on the node clock (system time; this node never runs on
 time): sample k is stamped start + k/rate, whenever it left. The simulated rig behaves like a
 rig: its plant follows the wall clock and NEVER PAUSES. A controller that answers late finds the
 valves holding its last command (zero-order hold) while the joint moves on. If the sampling
-thread itself wakes up late (the machine is overloaded), every overdue sample is CAUGHT UP back
-to back, each one model step h after the previous one with the command held at that moment, so
-the plant's time stays on the wall clock; those samples are *late samples* (published more than
-one period after their deadline), and the longest lateness is the *worst stall*. A run with late
+thread itself wakes up late (the machine is overloaded), up to max_catch_up overdue samples are
+CAUGHT UP back to back, each one model step h after the previous one with the command held at
+that moment; after a longer stall the plant steps through every overdue sample without
+publishing it (*missed samples*, a gap in the sample counter) and publishes the newest, so the
+plant's time stays on the wall clock and an overloaded process is not handed a backlog.
+Caught-up and missed samples are *late samples*
+(published more than one period after their deadline, or never), and the longest lateness is
+the *worst stall*. A run with late
 samples was not real time: the rig reports it (/diagnostics) and tracking_report / pam-demo mark
 such a run INVALID (pam_common.run_health), never as a result. Consumers step their models by h,
 not by stamp differences. Subscriptions and timers are spun by
@@ -53,9 +57,9 @@ and lock_memory apply to the executor thread and the sampler thread (sim_node_sa
 logged when granted and a warning when refused (pam_common.realtime_knobs, docs/realtime.md).
 
 Sample counter (Pressures.sample): k + 1 for the sample after k model steps, in both timings. A
-re-published lockstep sample keeps its counter (a repeat); a non-finite sample suppressed leaves
-a gap (a sample the rig took and nobody got). So a gap seen downstream is a sample lost on its
-way.
+re-published lockstep sample keeps its counter (a repeat); a missed sample (realtime, above) and
+a non-finite sample suppressed leave a gap (a sample the rig took and nobody got), counted by the
+rig; any other gap seen downstream is a sample lost on its way.
 
 Timing 'lockstep': sample k is stamped with simulated time t_k = k/rate. The plant steps k -> k+1
 only when a command for step k arrives: a ValveCommand whose header.stamp >= t_k (a zero stamp
@@ -75,10 +79,11 @@ name; hardware_id the parameter, by default the namespace) with the timing, targ
 achieved rate, late steps and max lateness (ms) of the last window, samples published, last
 sample counter, commands received, non-finite / out-of-range commands, past commands ignored,
 last command u1/u2 (V, as applied), joint mode and plant set; in realtime, since the start or the
-last `~/reset_statistics` call (std_srvs/Trigger): 'samples taken', 'late samples', 'worst stall
-(ms)' (the rig's own timing) and the sample -> command latency at the rig (pam_common.latency:
-each command's arrival minus the stamp of the sample it answers, p50/p99/p99.9/max in ms, and
-the commands that came after the next sample was taken); log lines suppressed
+last `~/reset_statistics` call (std_srvs/Trigger): 'samples taken', 'late samples', 'missed
+samples', 'worst stall (ms)' (the rig's own timing) and the sample -> command latency at the
+rig (pam_common.latency: each command's arrival minus the stamp of the sample it answers,
+p50/p99/p99.9/max in ms, and the commands that came after the next sample was taken); log lines
+suppressed
 (the warnings on the sample and command paths are throttled to one a second each, the lines left
 out counted, pam_common.throttled_log). Level ERROR if the sampling thread failed or a
 non-finite sample was ever suppressed; WARN if, in the last window, bad or past commands
@@ -319,6 +324,7 @@ class SimNode(LinkedNode):
         start = time.monotonic()
         start_ns = self.get_clock().now().nanoseconds   # deadline 0 on the node clock
         schedule = DeadlineSchedule(period, start, max_catch_up=None)   # the plant never pauses
+        burst = self.config.values['max_catch_up']
         self._stats.restart(start)
         first = True
         try:
@@ -327,14 +333,25 @@ class SimNode(LinkedNode):
                 if delay > 0.0:
                     time.sleep(delay)
                 now = time.monotonic()
-                t_ns = start_ns + round((schedule.deadline - start) * 1e9)
+                # more than `burst` samples overdue: the plant steps through all of them with
+                # the held command, unpublished (missed), and publishes the newest only, so that
+                # an overloaded process is not handed a backlog it cannot take
+                overdue = schedule.overdue(now)
+                missed = overdue if overdue > burst else 0
+                lateness = schedule.lateness(now)     # of the oldest sample due: the stall
                 with self._lock:
+                    for _ in range(missed):
+                        if not first:
+                            self._rig.step()
+                        first = False
+                        schedule.advance(now)
                     if not first:
                         self._rig.step()
                     first = False
-                    messages = self._take_sample(t_ns)
+                    messages = self._take_sample(start_ns + round((schedule.deadline - start)
+                                                                  * 1e9))
                 self._publish(messages)
-                self._stats.record(schedule.lateness(now))
+                self._stats.record(lateness, missed)
                 schedule.advance(now)
         except Exception as exc:  # noqa: BLE001 - report, do not die silently
             if self._stop.is_set() or not rclpy.ok(context=self.context):
@@ -451,8 +468,11 @@ class SimNode(LinkedNode):
             if self._lockstep:
                 values['republished samples'] = self._republished
             else:       # since the start or ~/reset_statistics
-                values.update({'samples taken': window.total_samples,
-                               'late samples': window.total_late_steps,
+                values.update({'samples taken': window.total_samples
+                               + window.total_skipped_periods,
+                               'late samples': window.total_late_steps
+                               + window.total_skipped_periods,
+                               'missed samples': window.total_skipped_periods,
                                'worst stall (ms)': window.max_lateness_total * 1e3})
                 values.update(self._timing.histogram.summary())
             new_bad = bad - self._reported['bad']

@@ -73,7 +73,8 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     assert status.hardware_id == '/pam'                     # hardware_id: the namespace
     values = {kv.key: kv.value for kv in status.values}
     for key in ('timing', 'rate target (Hz)', 'achieved rate (Hz)', 'late steps (last window)',
-                'max lateness (ms)', 'samples taken', 'late samples', 'worst stall (ms)',
+                'max lateness (ms)', 'samples taken', 'late samples', 'missed samples',
+                'worst stall (ms)',
                 'latency p99 (ms)', 'samples published', 'commands received',
                 'non-finite commands', 'out-of-range commands', 'past commands ignored',
                 'last command u1 (V)', 'last command u2 (V)', 'joint mode', 'plant parameters'):
@@ -89,9 +90,10 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
 
 def test_a_stalled_rig_never_pauses_its_plant_and_reports_the_stall(sim_node, probe, helpers):
     """The sampler frozen for STALL s (SIGSTOP, as a machine that starves it): on resuming the
-    plant catches up every overdue sample with the held command, so the sample counter and the
-    stamps stay on the wall clock (sample k stamped start + k/rate, no jump, no pause), and
-    /diagnostics counts the late samples and the worst stall."""
+    plant has gone on through the stall with the held command: the samples it missed (all but
+    max_catch_up, published back to back) are a gap in the counter, the stamps stay on the wall
+    clock (sample k stamped start + k/rate: no jump, no pause), and /diagnostics counts the
+    late and missed samples and the worst stall."""
     import signal
     stall = 0.3
     sim = sim_node('--params-file', helpers.installed_config('sim_node.yaml', 'pam_driver'))
@@ -104,19 +106,23 @@ def test_a_stalled_rig_never_pauses_its_plant_and_reports_the_stall(sim_node, pr
     sim.proc.send_signal(signal.SIGCONT)
     time.sleep(1.0)
     msgs = got.messages()
+    # stamps are the deadlines: k / rate, whatever the stall, across every sample and gap
+    for a, b in itertools.pairwise(msgs):
+        elapsed = (helpers.stamp_ns(b.header.stamp) - helpers.stamp_ns(a.header.stamp)) * 1e-9
+        assert b.sample > a.sample and abs(elapsed - (b.sample - a.sample) / RATE) < 2e-6
+    gaps = [b.sample - a.sample - 1 for a, b in itertools.pairwise(msgs) if b.sample > a.sample + 1]
+    stalled = max(gaps, default=0)          # (a start-up hiccup may have missed a few more)
+    assert stalled >= 0.5 * stall * RATE, f'the stall is a gap in the counter: {gaps}'
+    # and the plant did not pause: its samples cover the wall time since the first one
     first, last = msgs[0], msgs[-1]
     elapsed = (helpers.stamp_ns(last.header.stamp) - helpers.stamp_ns(first.header.stamp)) * 1e-9
-    # stamps are the deadlines: k / rate apart, whatever the stall
-    assert abs(elapsed - (last.sample - first.sample) / RATE) < 2e-6, (elapsed, first, last)
-    # and the plant did not pause: its samples cover the wall time since the first one
-    counters = [m.sample for m in msgs]
-    assert all(b == a + 1 for a, b in itertools.pairwise(counters)), 'no sample skipped or lost'
     wall = time.time() - helpers.stamp_ns(first.header.stamp) * 1e-9
     assert abs(elapsed - wall) < 0.2, f'plant time {elapsed:.3f} s, wall {wall:.3f} s'
     sim.wait_for(lambda: len(helpers.diagnostic_statuses(diagnostics)) >= 1, 10.0, 'diagnostics')
     time.sleep(1.2)
     values = {kv.key: kv.value for kv in helpers.diagnostic_statuses(diagnostics)[-1].values}
-    assert int(values['late samples']) >= 0.5 * stall * RATE, values
+    assert int(values['missed samples']) >= stalled, values
+    assert int(values['late samples']) >= stalled, values
     assert float(values['worst stall (ms)']) >= 0.8 * stall * 1e3, values
 
 
