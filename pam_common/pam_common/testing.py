@@ -232,6 +232,7 @@ class Collector:
     def __init__(self):
         self._lock = threading.Lock()
         self._items: list = []
+        self.subscription = None   # set by Probe.subscribe
 
     def add(self, msg) -> None:
         with self._lock:
@@ -297,9 +298,17 @@ class Probe:
             collector.add(msg)
 
         qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
-        self._in_spin_thread(lambda: self.node.create_subscription(msg_type, topic, on_message,
-                                                                   qos))
+        collector.subscription = self._in_spin_thread(
+            lambda: self.node.create_subscription(msg_type, topic, on_message, qos))
         return collector
+
+    def unsubscribe(self, collector: Collector) -> None:
+        """Stop `collector`'s subscription (its messages stay): a probe that keeps taking 1 kHz
+        topics it no longer reads loads the test process and delays what it does read."""
+        subscription = getattr(collector, 'subscription', None)
+        if subscription is not None:
+            collector.subscription = None
+            self._in_spin_thread(lambda: self.node.destroy_subscription(subscription))
 
     def _in_spin_thread(self, make, timeout: float = 10.0):
         """make() run by the spin thread, between two callbacks; its result. The EventsExecutor

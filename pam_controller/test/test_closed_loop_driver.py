@@ -71,7 +71,7 @@ import numpy as np
 import pytest
 from std_srvs.srv import Trigger
 
-from pam_common.testing import STOP_TIMEOUT, stamp_ns
+from pam_common.testing import STOP_TIMEOUT, stamp_ns, wait_until
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
 STARTUP = 45.0            # s, a fresh process on a loaded 2-core machine
@@ -167,7 +167,7 @@ def run_loop(node_process, probe, tmp_path, rig: str, mode: str) -> dict:
     """One live closed loop on `rig`: start it, run the step (once more if disturbed), stop it."""
     spec = MODES[mode]
     started = time.monotonic()
-    # fresh subscriptions: the probe keeps those of the previous run (which got nothing since)
+    # fresh subscriptions for each run, stopped at its end
     truth = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
     estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=1000)
     commands = probe.subscribe(ValveCommand, '/pam/valve_command', depth=1000)
@@ -178,6 +178,10 @@ def run_loop(node_process, probe, tmp_path, rig: str, mode: str) -> dict:
                                      (ukf, estimates, 'the first /pam/estimate'),
                                      (pi, commands, 'the first /pam/valve_command')):
         process.wait_for(lambda c=collector: len(c) > 0, STARTUP, what)
+    # only the truth is read from here on: two more 1 kHz topics would load this process (3000
+    # messages a second into rclpy) and delay the window's samples
+    probe.unsubscribe(estimates)
+    probe.unsubscribe(commands)
     pi.wait_for(lambda: reference.get_subscription_count() > 0, 10.0, 'pi_node on /pam/reference')
     watched = [p for p in processes if p.name in DISTURBANCES]
     try:
@@ -193,6 +197,7 @@ def run_loop(node_process, probe, tmp_path, rig: str, mode: str) -> dict:
             assert process.alive(), f'{process.name} died:\n{process.stderr[-2000:]}'
     finally:
         stop_all(processes)
+        probe.unsubscribe(truth)
         probe.node.destroy_publisher(reference)
     logs = '\n'.join(f'{p.name} log:\n{p.stderr[-3000:]}' for p in watched)
     assert result['disturbed'] is None, (
@@ -233,7 +238,10 @@ def run_step(probe, reference, truth, spec: dict, watched: list, arm: bool, pre:
     reference.publish(Reference(mode=spec['reference_mode'], value=level))
     time.sleep(HOLD)
     t_end = time.time()
-    time.sleep(0.3)   # the last samples of the window on their way
+    # the last samples of the window on their way: wait (bounded) for the first one after it, so
+    # that a test process that receives late does not read as a rig that sent too few
+    wait_until(lambda: any(stamp_ns(m.header.stamp) * 1e-9 > t_end
+                           for m in truth.messages()[-50:]), 5.0)
 
     disturbed = [f'{p.name}: {line}' for p in watched
                  for line in p.stderr[logs_before[p]:].splitlines()
