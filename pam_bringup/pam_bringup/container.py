@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import tempfile
 from pathlib import Path
 
+from pam_common.executors import PUBLICATION_MODE_VARIABLE
 from pam_common.links import enable_links
 from pam_common.node_skeleton import Component, container_main
 
@@ -126,6 +128,8 @@ def main(argv=None) -> int:
             logger = get_logger(PROG)
             logger.info(f'{len(nodes)} nodes in one process: ' + ', '.join(
                 node.get_fully_qualified_name() for node in nodes))
+            logger.info(f'DDS publication: {PUBLICATION_MODE_VARIABLE}='
+                        f'{os.environ.get(PUBLICATION_MODE_VARIABLE)}')
             if links is not None:
                 for line in links.links():
                     logger.info(f'in-process link {line}')

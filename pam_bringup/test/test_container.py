@@ -123,6 +123,9 @@ def test_composed_stack_looks_like_the_separate_one(node_process, probe):
     assert seen_composed == seen_separate
     assert '[pam_container]: 4 nodes in one process: /pam/sim_node, /pam/ukf_node, ' \
            '/pam/reference_node, /pam/pi_node' in composed.stderr
+    # FastDDS publishes from its own thread, not inside the 1 kHz loop's publish()
+    assert '[pam_container]: DDS publication: RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS' \
+        in composed.stderr
     assert composed.stop() == 0, composed.stderr
 
 
