@@ -35,10 +35,11 @@ import numpy as np
 
 from pam_controller.closed_loop import simulate_closed_loop_with_effects
 from pam_controller.step_metrics import ANGLE_SPAN, TORQUE_SPAN
+from pam_estimator.calibration_runs import load_identified
 from pam_estimator.evaluation import evaluate
 from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
-from pam_model.model_extensions import NO_EXTENSIONS, load_extensions
+from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.parameters import load_parameters
 from pam_model.profiles import step_reference_profile, validation_profile
 from pam_model.simulate import simulate
@@ -74,9 +75,7 @@ def identified_model(out: Path, scenario: str, campaign_seed: int):
     print('  ' + (kept[0] if kept else 'extensions: none kept'), flush=True)
     if 'NOT identified' in report:
         print('  ' + report[report.index('NOT identified'):].replace('\n', '\n  '), flush=True)
-    return (PamModel(params=load_parameters(ident / 'params.yaml'),
-                     valve_map=load_valve_map(ident / 'kappa.csv')),
-            load_extensions(ident / 'extensions.yaml'))
+    return load_identified(ident)
 
 
 def figures(plant: PamModel, scenario, estimators: dict, seed: int) -> dict:

@@ -81,10 +81,8 @@ def params_file(folder: Path, ports: dict[str, str], scenario: str | None = None
     if scenario:
         out['/**/sim_node']['ros__parameters']['mismatch'] = scenario
     if identified is not None:
-        ukf = out['/**/ukf_node']['ros__parameters']
-        ukf['model_parameters'] = str(identified / 'params.yaml')
-        ukf['valve_map'] = str(identified / 'kappa.csv')
-        ukf['model_extensions'] = str(identified / 'extensions.yaml')
+        from pam_estimator.calibration_runs import identified_ukf_parameters
+        out['/**/ukf_node']['ros__parameters'].update(identified_ukf_parameters(identified))
     for ns, port in ports.items():
         out[f'{ns}/driver_node'] = {'ros__parameters': {'port': port}}
     path = folder / 'stack_load_params.yaml'
@@ -277,7 +275,7 @@ def kernels_per_sample(scenario: str | None, identified: Path | None,
     from pam_estimator.pam_ukf import PamUkf
     from pam_model.mismatch import load_scenario
     from pam_model.model import PamModel
-    from pam_model.model_extensions import NO_EXTENSIONS, load_extensions
+    from pam_model.model_extensions import NO_EXTENSIONS
     from pam_model.parameters import load_parameters
     from pam_model.rig import SimulatedRig
     from pam_model.valve_map import load_valve_map
@@ -291,9 +289,8 @@ def kernels_per_sample(scenario: str | None, identified: Path | None,
     rig = SimulatedRig(plant, x0, plan.sensor, 0, tuple(sim['initial_command']),
                        effects=plan.effects)
     if identified is not None:
-        model = PamModel(params=load_parameters(identified / 'params.yaml'),
-                         valve_map=load_valve_map(identified / 'kappa.csv'))
-        extensions = load_extensions(identified / 'extensions.yaml')
+        from pam_estimator.calibration_runs import load_identified
+        model, extensions = load_identified(identified)
     else:
         model, extensions = nominal, NO_EXTENSIONS
     ukf = PamUkf(model=model, x0=tuple(x0), extensions=extensions)

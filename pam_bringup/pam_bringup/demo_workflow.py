@@ -108,10 +108,9 @@ def run_params(base: dict, scenario: str, identified: Path | None) -> dict:
     sim = data.setdefault('/pam/sim_node', {}).setdefault('ros__parameters', {})
     sim['mismatch'] = scenario
     if identified is not None:
-        ukf = data.setdefault('/pam/ukf_node', {}).setdefault('ros__parameters', {})
-        ukf['model_parameters'] = str(identified / 'params.yaml')
-        ukf['valve_map'] = str(identified / 'kappa.csv')
-        ukf['model_extensions'] = str(identified / 'extensions.yaml')
+        from pam_estimator.calibration_runs import identified_ukf_parameters
+        data.setdefault('/pam/ukf_node', {}).setdefault('ros__parameters', {}).update(
+            identified_ukf_parameters(identified))
     return data
 
 
@@ -152,15 +151,13 @@ def loop_settings(base: dict) -> dict:
 def demo_models(identified: Path) -> dict:
     """{run: (estimator model, extensions)}: the nominal Table II model without extensions, and
     pam-identify's output (params.yaml, kappa.csv, extensions.yaml)."""
+    from pam_estimator.calibration_runs import load_identified
     from pam_model.model import PamModel
-    from pam_model.model_extensions import NO_EXTENSIONS, load_extensions
+    from pam_model.model_extensions import NO_EXTENSIONS
     from pam_model.parameters import load_parameters
     from pam_model.valve_map import load_valve_map
     nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
-    return {'nominal': (nominal, NO_EXTENSIONS),
-            'identified': (PamModel(params=load_parameters(identified / 'params.yaml'),
-                                    valve_map=load_valve_map(identified / 'kappa.csv')),
-                           load_extensions(identified / 'extensions.yaml'))}
+    return {'nominal': (nominal, NO_EXTENSIONS), 'identified': load_identified(identified)}
 
 
 def batch_comparison(scenario: str, models: dict, settings: dict, duration: float,

@@ -24,6 +24,25 @@ REPORT_FILE = 'report.txt'
 EXTENSIONS_FILE = 'extensions.yaml'
 
 
+def identified_ukf_parameters(directory) -> dict[str, str]:
+    """ukf_node's parameters that put it on the model in `directory` (pam-identify's output:
+    it always writes all three files)."""
+    directory = Path(directory)
+    return {'model_parameters': str(directory / PARAMS_FILE),
+            'valve_map': str(directory / KAPPA_FILE),
+            'model_extensions': str(directory / EXTENSIONS_FILE)}
+
+
+def load_identified(directory):
+    """(PamModel, ModelExtensions) of pam-identify's output `directory`, read as ukf_node
+    reads them."""
+    from pam_model.model import PamModel
+    directory = Path(directory)
+    return (PamModel(params=load_parameters(directory / PARAMS_FILE),
+                     valve_map=load_valve_map(directory / KAPPA_FILE)),
+            load_extensions(directory / EXTENSIONS_FILE))
+
+
 def load_record(path) -> CalibrationRecord:
     """One calibration run; ValueError naming the file and what is wrong or missing. A bag's
     samples before its first recorded valve command are left out (the rig's valves were at a
