@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from .pi import PiController, PiGains, PiOutput
+from .pi import PiController, PiGains, PiOutput, validate_gains
 
 ANGLE, TORQUE = 0, 1           # pam_interfaces/Reference constants
 MODE_NAMES = {ANGLE: 'angle', TORQUE: 'torque'}
@@ -57,6 +57,14 @@ class ControlLoop:
     @property
     def controller(self) -> PiController:
         return self.controllers[self.mode]
+
+    def set_gains(self, angle_gains: PiGains, torque_gains: PiGains,
+                  anti_windup: str | None = None, tracking_time: float | None = None) -> None:
+        """Both modes' gains (and, None: unchanged, the anti-windup scheme and tracking time in
+        s) at once, as PiController.set_gains checks them: a ValueError changes neither mode."""
+        validate_gains(torque_gains)       # the angle call checks the rest before changing it
+        self.controllers[ANGLE].set_gains(angle_gains, anti_windup, tracking_time)
+        self.controllers[TORQUE].set_gains(torque_gains, anti_windup, tracking_time)
 
     def set_reference(self, mode: int, value: float) -> str:
         """Accept a reference; returns a message if it was refused, clamped to the envelope or

@@ -96,20 +96,31 @@ def pi_step(e, dt, i_term, kp, ki, beta, u_min, u_max, anti_windup, tracking_tim
 
 
 class PiController:
-    """A PI controller with state: step(e, dt) -> PiOutput. Gains may change at any time."""
+    """A PI controller with state: step(e, dt) -> PiOutput. Gains change through set_gains()."""
 
     def __init__(self, gains: PiGains, anti_windup: str = 'conditional',
                  tracking_time: float = 0.1, dt_max: float = 0.1):
+        if not 0.0 < dt_max < math.inf:
+            raise ValueError(f'dt_max must be finite and > 0 s, got {dt_max!r}')
+        self.dt_max = float(dt_max)
+        self.i_term = 0.0
+        self.set_gains(gains, anti_windup, tracking_time)
+
+    def set_gains(self, gains: PiGains, anti_windup: str | None = None,
+                  tracking_time: float | None = None) -> None:
+        """New gains and limits, and (None: unchanged) anti-windup scheme and tracking time (s).
+
+        Checked as __init__ checks them (validate_gains, check_anti_windup): a ValueError naming
+        the bad field leaves everything unchanged. The integral term is kept, so the output does
+        not jump (see the module docstring).
+        """
+        anti_windup = self.anti_windup if anti_windup is None else anti_windup
+        tracking_time = self.tracking_time if tracking_time is None else tracking_time
         validate_gains(gains)
-        if anti_windup not in ANTI_WINDUP:
-            raise ValueError(f'anti_windup must be one of {ANTI_WINDUP}, got {anti_windup!r}')
-        if not (0.0 < tracking_time < math.inf and 0.0 < dt_max < math.inf):
-            raise ValueError('tracking_time and dt_max must be finite and > 0 s')
+        check_anti_windup(anti_windup, tracking_time)
         self.gains = gains
         self.anti_windup = anti_windup
         self.tracking_time = float(tracking_time)
-        self.dt_max = float(dt_max)
-        self.i_term = 0.0
 
     def reset(self) -> None:
         self.i_term = 0.0
@@ -121,6 +132,14 @@ class PiController:
                                     self.tracking_time, self.dt_max)
         self.i_term = i
         return PiOutput(u1, u2, p, i, bool(sat))
+
+
+def check_anti_windup(anti_windup: str, tracking_time: float) -> None:
+    """A known scheme (ANTI_WINDUP) and a finite tracking_time > 0 s; else a ValueError."""
+    if anti_windup not in ANTI_WINDUP:
+        raise ValueError(f'anti_windup must be one of {ANTI_WINDUP}, got {anti_windup!r}')
+    if not 0.0 < tracking_time < math.inf:
+        raise ValueError(f'tracking_time must be finite and > 0 s, got {tracking_time!r}')
 
 
 def validate_gains(g: PiGains) -> PiGains:

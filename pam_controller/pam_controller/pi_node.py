@@ -16,7 +16,9 @@ Run `pi_node --help` for the parameters. Topics resolve under the node namespace
 Service ~/enable (std_srvs/SetBool): false sends the valves to safe_command and holds them there.
 No feedback for feedback_timeout s (wall clock) also sends safe_command, and /diagnostics says
 so. Gains, limits and the anti-windup scheme can be changed at run time (ros2 param set); bad
-values (negative, NaN, u_min >= u_max, beta outside the limits) are rejected.
+values (negative, NaN, u_min >= u_max, beta outside the limits) are rejected with a reason and
+leave the running ones untouched: the on-set callback only checks, the post-set callback applies
+(ControlLoop.set_gains).
 A reference outside the rig's envelope (control_loop.ENVELOPE) is clamped to it, counted and
 reported (WARN); a non-finite one is ignored. Nothing non-finite is published (FiniteGuard: a
 command -> safe_command, a state field -> 0, u1/u2 -> safe_command; counted on /diagnostics).
@@ -109,6 +111,8 @@ PARAMETERS = (
               'Valve voltages when disabled or without feedback: by default both valves at beta '
               '(equal co-contraction, the joint rests near 0 deg).'),
     ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),
+    ParamSpec('frame_id', 'pam_joint', 'string', '',
+              'frame_id of the published headers (valve_command, controller_state).'),
     WARN_RATIO_PARAM,
     HARDWARE_ID_PARAM,
     *REALTIME_PARAMS,
@@ -127,14 +131,20 @@ def gains_from(values: dict, mode: str) -> PiGains:
                    values['u_max'])
 
 
-def build_loop(values: dict) -> ControlLoop:
-    """ConfigError naming the problem if the gains or limits are not usable."""
+def checked_gains(values: dict) -> tuple[PiGains, PiGains]:
+    """The angle and torque gains of `values`; a ConfigError naming the problem if not usable."""
     try:
-        gains = {mode: validate_gains(gains_from(values, mode)) for mode in ('angle', 'torque')}
+        return validate_gains(gains_from(values, 'angle')), validate_gains(
+            gains_from(values, 'torque'))
     except ValueError as exc:
         raise ConfigError(f'gains/limits: {exc}') from exc
+
+
+def build_loop(values: dict) -> ControlLoop:
+    """ConfigError naming the problem if the gains or limits are not usable."""
+    angle, torque = checked_gains(values)
     safe = check_command('safe_command', values['safe_command'])
-    return ControlLoop(gains['angle'], gains['torque'], values['anti_windup'],
+    return ControlLoop(angle, torque, values['anti_windup'],
                        values['tracking_time'], values['dt_max'], safe,
                        ANGLE if values['mode'] == 'angle' else TORQUE,
                        values['initial_reference'], values['enabled'])
@@ -148,6 +158,7 @@ class PiNode(LinkedNode):
         super().__init__(NODE_NAME, **kwargs)
         self.values = parameter_values(self, PARAMETERS)
         self.loop = build_loop(self.values)
+        self._frame_id = self.values['frame_id']
         # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
         self.realtime = RealtimeKnobs(self.get_logger(), self.values)
         self.realtime.apply_to_executor()
@@ -170,7 +181,8 @@ class PiNode(LinkedNode):
                                    'sensor-less control')
         self.create_subscription(Reference, REFERENCE, self._on_reference, SAMPLE_QOS)
         self.create_service(SetBool, '~/enable', self._on_enable)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
         self.diagnostics = DiagnosticsPublisher(self, 'PI controller',
                                                 self.values['hardware_id'], self._report)
         self.diagnostics.add_check(self.guard.report)
@@ -220,7 +232,7 @@ class PiNode(LinkedNode):
     def _publish(self, out, stamp, feedback: float) -> None:
         command = ValveCommand(u1=out.u1, u2=out.u2)
         command.header.stamp = stamp
-        command.header.frame_id = 'pam_joint'
+        command.header.frame_id = self._frame_id
         self.command_pub.publish(command)
         self.commands += 1
         self.saturated += int(out.saturated)
@@ -284,26 +296,30 @@ class PiNode(LinkedNode):
                 f'{list(self.loop.safe_command)} V')
             self._publish(self.loop.safe_output(), self.get_clock().now().to_msg(), math.nan)
 
-    # --- run-time parameters ----------------------------------------------------------------------
-    def _on_set_parameters(self, params) -> SetParametersResult:
+    # --- run-time parameters: on-set checks, post-set applies ------------------------------------
+    def _proposed(self, params) -> tuple[dict, PiGains, PiGains]:
+        """The values after `params` and the two modes' gains, checked as at start (a ValueError
+        or TypeError naming the problem)."""
         proposed = dict(self.values)
-        for p in params:
-            proposed[p.name] = p.value
+        proposed.update((p.name, p.value) for p in params)
+        check_all(PARAMETERS, proposed)
+        return (proposed, *checked_gains(proposed))
+
+    def _check_parameters(self, params) -> SetParametersResult:
+        """rclpy's on-set callback: accept or reject with a reason; nothing changes here."""
         try:
-            proposed = check_all(PARAMETERS, proposed)
-            loop_check = {mode: validate_gains(gains_from(proposed, mode))
-                          for mode in ('angle', 'torque')}
+            self._proposed(params)
         except (ValueError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
-        for mode, code in (('angle', ANGLE), ('torque', TORQUE)):
-            controller = self.loop.controllers[code]
-            controller.gains = loop_check[mode]
-            controller.anti_windup = proposed['anti_windup']
-            controller.tracking_time = proposed['tracking_time']
-        self.values = proposed
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, params) -> None:
+        """rclpy's post-set callback: the accepted values reach the running controllers."""
+        values, angle, torque = self._proposed(params)
+        self.loop.set_gains(angle, torque, values['anti_windup'], values['tracking_time'])
+        self.values = values
         self.get_logger().info('parameters changed: ' + ', '.join(
             f'{p.name}={p.value}' for p in params))
-        return SetParametersResult(successful=True)
 
     def _clamp_report(self):
         """The references clamped to the envelope: WARN while some were in the last period."""

@@ -69,7 +69,7 @@ def test_changing_ki_causes_no_jump():
     for _ in range(100):
         pi.step(0.1, 0.001)
     before = pi.step(0.1, 0.0)                              # no time elapsed: no increment
-    pi.gains = G._replace(ki=500.0)
+    pi.set_gains(G._replace(ki=500.0))
     after = pi.step(0.1, 0.0)
     assert after.u1 == before.u1 and after.i_term == before.i_term
 
@@ -81,6 +81,46 @@ def test_changing_ki_causes_no_jump():
 def test_bad_gains_are_rejected(gains):
     with pytest.raises(ValueError):
         validate_gains(gains)
+
+
+@pytest.mark.parametrize('args', [
+    (PiGains(-1.0, 1.0),), (PiGains(1.0, math.nan),), (PiGains(1.0, 1.0, u_min=6.0, u_max=5.0),),
+    (PiGains(1.0, 1.0, beta=11.0, u_max=10.0),), (PiGains(1.0, 1.0, u_min=-1.0),),
+    (G, 'clamping'), (G, 'conditional', 0.0), (G, 'back_calculation', math.inf),
+    (G, 'conditional', math.nan)])
+def test_set_gains_rejects_what_the_constructor_rejects_and_changes_nothing(args):
+    with pytest.raises(ValueError):
+        PiController(*args)
+    pi = PiController(G, 'back_calculation', 0.2)
+    pi.step(0.1, 0.001)
+    before = (pi.gains, pi.anti_windup, pi.tracking_time, pi.i_term)
+    with pytest.raises(ValueError):
+        pi.set_gains(*args)
+    assert (pi.gains, pi.anti_windup, pi.tracking_time, pi.i_term) == before
+
+
+def test_set_gains_applies_and_keeps_the_integral():
+    pi = PiController(G)
+    pi.step(0.1, 0.001)
+    i_term = pi.i_term
+    pi.set_gains(G._replace(kp=1.0), 'back_calculation', 0.5)
+    assert (pi.gains.kp, pi.anti_windup, pi.tracking_time, pi.i_term) == (
+        1.0, 'back_calculation', 0.5, i_term)
+    pi.set_gains(G)                                         # None: scheme and time unchanged
+    assert (pi.gains, pi.anti_windup, pi.tracking_time) == (G, 'back_calculation', 0.5)
+
+
+def test_control_loop_set_gains_changes_both_modes_or_neither():
+    loop = ControlLoop(G, PiGains(2.0, 1.0))
+    with pytest.raises(ValueError):                         # a bad torque gain: angle untouched
+        loop.set_gains(PiGains(3.0, 3.0), PiGains(-2.0, 1.0))
+    with pytest.raises(ValueError):                         # a bad scheme: neither changes
+        loop.set_gains(PiGains(3.0, 3.0), PiGains(4.0, 4.0), 'clamping')
+    assert (loop.controllers[ANGLE].gains, loop.controllers[TORQUE].gains) == (
+        G, PiGains(2.0, 1.0))
+    loop.set_gains(PiGains(3.0, 3.0), PiGains(4.0, 4.0), 'back_calculation', 0.3)
+    assert [(c.gains.kp, c.anti_windup, c.tracking_time) for c in loop.controllers.values()] == [
+        (3.0, 'back_calculation', 0.3), (4.0, 'back_calculation', 0.3)]
 
 
 def test_control_loop_modes_enable_and_stamps():

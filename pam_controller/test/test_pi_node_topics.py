@@ -8,7 +8,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from std_srvs.srv import SetBool
 
 from pam_common.diagnostics import WARN, status_values
@@ -64,13 +64,24 @@ def test_pi_node_commands_gains_enable_timeout(node_process, probe):
     state = states.messages()[-1]
     assert state.error == 0.1 and state.p_term == 40.0 * 0.1 and not state.saturated
 
+    assert last.header.frame_id == 'pam_joint'
+
     bad = call(probe, SetParameters, '/pam/pi_node/set_parameters',
                SetParameters.Request(parameters=[double_param('kp_angle', -1.0)]))
     assert not bad.results[0].successful
     bad = call(probe, SetParameters, '/pam/pi_node/set_parameters',
                SetParameters.Request(parameters=[double_param('u_min', 9.9),
                                                  double_param('u_max', 5.0)]))
-    assert not bad.results[0].successful
+    assert not any(result.successful for result in bad.results)
+    bad = call(probe, SetParametersAtomically, '/pam/pi_node/set_parameters_atomically',
+               SetParametersAtomically.Request(parameters=[double_param('kp_angle', 20.0),
+                                                           double_param('u_min', 9.9),
+                                                           double_param('u_max', 5.0)]))
+    assert not bad.result.successful and 'u_min' in bad.result.reason
+    commands.clear()                                   # the running gains are untouched
+    feed(20, start=1.5)
+    pi.wait_for(lambda: len(commands) >= 20, 20.0, 'commands after the rejected changes')
+    assert math.isclose(states.messages()[-1].p_term, 40.0 * 0.1)
     good = call(probe, SetParameters, '/pam/pi_node/set_parameters',
                 SetParameters.Request(parameters=[double_param('kp_angle', 10.0)]))
     assert good.results[0].successful
@@ -106,7 +117,7 @@ def test_a_huge_reference_is_clamped_and_nothing_non_finite_is_published(node_pr
     rig's envelope (+-25 deg), counted on /diagnostics (WARN), and every field stays finite."""
     pi, commands, states, diagnostics, references, feed = start_pi_node(
         node_process, probe, '-p', 'anti_windup:=back_calculation', '-p',
-        'initial_reference:=0.1')
+        'initial_reference:=0.1', '-p', 'frame_id:=joint2')
     def clamped() -> int:
         statuses = diagnostic_statuses(diagnostics, 'pi_node')
         return int(status_values(statuses[-1])['references clamped to the envelope']) \
@@ -127,6 +138,7 @@ def test_a_huge_reference_is_clamped_and_nothing_non_finite_is_published(node_pr
     for state in states.messages():
         assert all(math.isfinite(getattr(state, f)) for f in fields), state
     assert all(math.isfinite(c.u1) and math.isfinite(c.u2) for c in commands.messages())
+    assert {c.header.frame_id for c in commands.messages()} == {'joint2'}   # the parameter
     assert max(s.reference for s in states.messages()) == math.radians(25.0)
     last = states.messages()[-1]
     assert last.reference == 0.05 and last.error == 0.05 and pi.alive()
