@@ -22,6 +22,14 @@ RATIO = 1.02            # width of a bin: its upper edge / its lower edge
 BINS = math.ceil(math.log(1e2 / LOWEST) / math.log(RATIO)) + 1   # up to 100 s; the last is open
 
 
+#: the /diagnostics keys of LatencyHistogram.summary() (read by pam_common.run_health)
+COMMANDS_TIMED = 'commands timed'
+COMMANDS_LATE = 'commands after the next sample'
+LATENCY_P50_MS = 'latency p50 (ms)'
+LATENCY_P99_MS = 'latency p99 (ms)'
+LATENCY_P999_MS = 'latency p99.9 (ms)'
+LATENCY_MAX_MS = 'latency max (ms)'
+
 class LatencyHistogram:
     """Latencies (s) in logarithmic bins; thread-safe. percentile() returns a bin's upper edge
     (at most 2 % above the true value), except that it never exceeds the largest latency seen."""
@@ -68,11 +76,11 @@ class LatencyHistogram:
 
     def summary(self) -> dict[str, float | int]:
         """The figures a report prints: count, late, p50/p99/p99.9/max in ms."""
-        return {'commands timed': self.count, 'commands after the next sample': self.late,
-                'latency p50 (ms)': self.percentile(50.0) * 1e3,
-                'latency p99 (ms)': self.percentile(99.0) * 1e3,
-                'latency p99.9 (ms)': self.percentile(99.9) * 1e3,
-                'latency max (ms)': self.max * 1e3 if self.count else math.nan}
+        return {COMMANDS_TIMED: self.count, COMMANDS_LATE: self.late,
+                LATENCY_P50_MS: self.percentile(50.0) * 1e3,
+                LATENCY_P99_MS: self.percentile(99.0) * 1e3,
+                LATENCY_P999_MS: self.percentile(99.9) * 1e3,
+                LATENCY_MAX_MS: self.max * 1e3 if self.count else math.nan}
 
 
 class CommandTiming:

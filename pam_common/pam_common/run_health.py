@@ -9,19 +9,32 @@ since its start or its `~/reset_statistics` call) and at the samples the report 
 says VALID or INVALID with one reason per broken threshold. No ROS here: the caller passes the
 status' key/values (pam_common.diagnostics.status_values) and the two counts.
 
-The thresholds (HealthLimits, SI units: seconds; fractions are plain ratios 0..1):
+The thresholds (HealthLimits, SI units: seconds; fractions are plain ratios 0..1). They are set
+where a run's figures stop being the loop's, measured on the 2-core development machine with the
+composed identified stack on the `realistic` rig (docs/realtime.md, "When a run is real time"):
+runs with 1.5-4.6 % late samples, stalls up to 13 ms and a p99 latency up to 4 ms gave the
+deterministic batch loop's tracking figures (worst steady-state error 0.27-0.28 % against 0.26 %)
+and estimation error (Q 0.36-0.42 %); with two CPU-bound processes beside it (11.5 % late, an
+18 ms stall, samples missed) Q doubled (1.00 %). A bare Python loop that only sleeps to a 1 kHz
+deadline at SCHED_FIFO priority 80 already has 0.3-0.8 % of its wake-ups more than a period late
+on that machine (its hypervisor), so a 1 % limit would judge the machine, not the stack.
 
-- max_late_fraction 0.01: the fraction of the rig's samples taken more than one period after
+- max_late_fraction 0.05: the fraction of the rig's samples taken more than one period after
   their deadline ('late samples' / 'samples taken'). A late sample is taken with the command
-  held since the previous one while the plant moved on; one in a hundred is the most a 1 kHz
-  loop whose figures are quoted may have.
+  held since the previous one while the plant moved on; sporadic ones (one in twenty at most)
+  delay a command by a period or two, a phase lag of under a degree at the PI loop's crossover
+  (about 1 Hz); more means the loop is overloaded, not jittered.
+- max_missed_fraction 0.001: the fraction of the rig's samples never published ('missed
+  samples': after a stall longer than sim_node's max_catch_up the plant steps on with the held
+  command and the loop never sees those samples): each is a hole in the estimator's input.
 - max_worst_stall 0.020 s: the longest lateness of the rig's sampling ('worst stall (ms)'). At
   1 kHz a stall of 20 ms is 20 samples held at the old command, a fifth of the valves' own time
-  constant: past that the loop is open for a visible while.
-- max_latency_p99 0.002 s: the 99th percentile of the sample -> command latency at the rig (the
-  command's arrival minus the stamp of the sample it answers, 'latency p99 (ms)'). Above two
-  periods the controller works on stale estimates most of the time, and the loop has a delay
-  the batch analysis and the gains do not assume.
+  constant and less than half the driver's command watchdog (50 ms, which vents a real rig):
+  past that the loop is open for a visible while.
+- max_latency_p99 0.005 s: the 99th percentile of the sample -> command latency at the rig (the
+  command's arrival minus the stamp of the sample it answers, 'latency p99 (ms)'). Five periods:
+  one command in a hundred may come that late (a delay the gains tolerate, see above); above
+  it the loop runs with a delay the batch analysis and the gains do not assume.
 - max_late_command_fraction 0.05: the fraction of the timed commands that arrived after the rig
   had taken its next sample ('commands after the next sample' / 'commands timed'): each of those
   is one period applied with the previous command.
@@ -31,7 +44,8 @@ The thresholds (HealthLimits, SI units: seconds; fractions are plain ratios 0..1
 
 A key the rig does not publish is not judged, and the notes say so: driver_node publishes the
 latency keys only ('commands timed', 'commands after the next sample', 'latency p50/p99/p99.9/
-max (ms)'), not the sample-timing ones ('samples taken', 'late samples', 'worst stall (ms)').
+max (ms)'), not the sample-timing ones ('samples taken', 'late samples', 'missed samples',
+'worst stall (ms)'): the board samples on its own clock.
 No rig status at all (rig None) makes the run INVALID: its real-time health is unknown.
 """
 
@@ -41,15 +55,13 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
+from .latency import COMMANDS_LATE, COMMANDS_TIMED, LATENCY_MAX_MS, LATENCY_P50_MS, LATENCY_P99_MS
+
 #: the rig's /diagnostics keys judge_run reads
 SAMPLES_TAKEN = 'samples taken'
 LATE_SAMPLES = 'late samples'
+MISSED_SAMPLES = 'missed samples'
 WORST_STALL_MS = 'worst stall (ms)'
-COMMANDS_TIMED = 'commands timed'
-COMMANDS_LATE = 'commands after the next sample'
-LATENCY_P50_MS = 'latency p50 (ms)'
-LATENCY_P99_MS = 'latency p99 (ms)'
-LATENCY_MAX_MS = 'latency max (ms)'
 NO_RIG = 'no /diagnostics from the rig: real-time health unknown'
 
 
@@ -57,9 +69,10 @@ NO_RIG = 'no /diagnostics from the rig: real-time health unknown'
 class HealthLimits:
     """The thresholds of a valid run (module docstring: why each one)."""
 
-    max_late_fraction: float = 0.01          # late rig samples / samples taken
+    max_late_fraction: float = 0.05          # late rig samples / samples taken
+    max_missed_fraction: float = 0.001       # rig samples never published / samples taken
     max_worst_stall: float = 0.020           # s: 20 periods at 1 kHz
-    max_latency_p99: float = 0.002           # s: sample -> command at the rig, 2 periods
+    max_latency_p99: float = 0.005           # s: sample -> command at the rig, 5 periods
     max_late_command_fraction: float = 0.05  # commands after the next sample / commands timed
     max_lost_fraction: float = 0.01          # samples lost at the report / samples sent
 
@@ -100,6 +113,7 @@ class RunHealth:
     samples_lost: int
     samples_taken: float          # by the rig, since its start or ~/reset_statistics
     late_samples: float
+    missed_samples: float         # late samples never published (the plant stepped on)
     worst_stall: float            # s
     latency_p50: float            # s, sample -> command at the rig
     latency_p99: float            # s
@@ -128,8 +142,10 @@ class RunHealth:
         parts = [f'real-time health: {self.samples_received} of {self.samples_sent} samples '
                  f'received ({self.samples_lost} lost)']
         if _known(self.late_samples) or _known(self.worst_stall):
-            parts.append(f'rig: {_count(self.late_samples)} late samples, worst stall '
-                         f'{_ms(self.worst_stall)} ms')
+            missed = (f' ({_count(self.missed_samples)} missed)'
+                      if _known(self.missed_samples) else '')
+            parts.append(f'rig: {_count(self.late_samples)} late samples{missed} of '
+                         f'{_count(self.samples_taken)}, worst stall {_ms(self.worst_stall)} ms')
         headline = ', '.join(parts)
         if _known(self.latency_p99):
             late = (100.0 * self.late_commands / self.commands_timed
@@ -142,7 +158,7 @@ class RunHealth:
         return [headline] + [f'  (not judged: {note})' for note in self.notes]
 
 
-_COUNTS = ('samples_taken', 'late_samples', 'commands_timed', 'late_commands')
+_COUNTS = ('samples_taken', 'late_samples', 'missed_samples', 'commands_timed', 'late_commands')
 
 
 def _ms(seconds: float) -> str:
@@ -164,6 +180,7 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
     received, expected = int(received), int(expected)
     lost = max(expected - received, 0)
     taken, late = number(rig, SAMPLES_TAKEN), number(rig, LATE_SAMPLES)
+    missed = number(rig, MISSED_SAMPLES)
     stall = number(rig, WORST_STALL_MS) * 1e-3
     p50, p99 = number(rig, LATENCY_P50_MS) * 1e-3, number(rig, LATENCY_P99_MS) * 1e-3
     worst_latency = number(rig, LATENCY_MAX_MS) * 1e-3
@@ -182,6 +199,8 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
         fraction_checks = (
             (late, taken, limits.max_late_fraction, 'rig samples late',
              "the rig publishes no 'samples taken' / 'late samples': late samples"),
+            (missed, taken, limits.max_missed_fraction, 'rig samples missed',
+             "the rig publishes no 'missed samples': missed samples"),
             (late_commands, timed, limits.max_late_command_fraction,
              'commands after the next sample',
              'no command timed at the rig: commands after the next sample'))
@@ -202,7 +221,8 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
             elif value > limit:
                 reasons.append(f'{what} {_ms(value)} ms > {limit * 1e3:g} ms')
     return RunHealth(samples_sent=expected, samples_received=received, samples_lost=lost,
-                     samples_taken=taken, late_samples=late, worst_stall=stall,
+                     samples_taken=taken, late_samples=late, missed_samples=missed,
+                     worst_stall=stall,
                      latency_p50=p50, latency_p99=p99, latency_max=worst_latency,
                      commands_timed=timed, late_commands=late_commands,
                      valid=not reasons, reasons=tuple(reasons), notes=tuple(notes))

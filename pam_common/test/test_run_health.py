@@ -10,7 +10,8 @@ import pytest
 from pam_common.run_health import NO_RIG, HealthLimits, judge_run, number
 
 #: a clean sim_node status as /diagnostics carries it (strings)
-CLEAN = {'samples taken': '64001', 'late samples': '0', 'worst stall (ms)': '0.9',
+CLEAN = {'samples taken': '64001', 'late samples': '0', 'missed samples': '0',
+         'worst stall (ms)': '0.9',
          'commands timed': '64000', 'commands after the next sample': '64',
          'latency p50 (ms)': '0.21', 'latency p99 (ms)': '0.48', 'latency p99.9 (ms)': '1.2',
          'latency max (ms)': '2.1', 'timing': 'realtime'}
@@ -26,8 +27,8 @@ def test_a_clean_run_is_valid_and_says_so_in_one_line():
     assert health.worst_stall == pytest.approx(0.0009)
     assert health.latency_p99 == pytest.approx(0.00048)
     assert health.lines() == [
-        'real-time health: 64001 of 64001 samples received (0 lost), rig: 0 late samples, '
-        'worst stall 0.90 ms; sample -> command at the rig p50 0.21 / p99 0.48 / max 2.1 ms, '
+        'real-time health: 64001 of 64001 samples received (0 lost), rig: 0 late samples '
+        '(0 missed) of 64001, worst stall 0.90 ms; sample -> command at the rig p50 0.21 / p99 0.48 / max 2.1 ms, '
         '0.1 % after the next sample: VALID']
 
 
@@ -37,9 +38,11 @@ def test_numbers_are_taken_as_well_as_strings():
 
 
 @pytest.mark.parametrize(('change', 'received', 'expected_reason'), [
-    ({'late samples': '1000'}, 64001, '1000 of 64001 rig samples late (1.56 % > 1 %)'),
+    ({'late samples': '4000'}, 64001, '4000 of 64001 rig samples late (6.25 % > 5 %)'),
+    ({'late samples': '100', 'missed samples': '100'}, 64001,
+     '100 of 64001 rig samples missed (0.16 % > 0.1 %)'),
     ({'worst stall (ms)': '35'}, 64001, 'worst stall 35.0 ms > 20 ms'),
-    ({'latency p99 (ms)': '2.5'}, 64001, 'sample -> command latency p99 2.5 ms > 2 ms'),
+    ({'latency p99 (ms)': '5.5'}, 64001, 'sample -> command latency p99 5.5 ms > 5 ms'),
     ({'commands after the next sample': '6400'}, 64001,
      '6400 of 64000 commands after the next sample (10.00 % > 5 %)'),
     ({}, 63000, '1001 of 64001 samples lost at the report (1.56 % > 1 %)'),
@@ -53,8 +56,9 @@ def test_each_broken_threshold_gives_one_reason_with_figure_and_limit(change, re
 
 
 def test_the_limits_are_the_edges():
-    at_limit = {**CLEAN, 'late samples': '640.01', 'worst stall (ms)': '20',
-                'latency p99 (ms)': '2', 'commands after the next sample': '3200'}
+    at_limit = {**CLEAN, 'late samples': '3200.05', 'missed samples': '64.001',
+                'worst stall (ms)': '20', 'latency p99 (ms)': '5',
+                'commands after the next sample': '3200'}
     assert judge_run(at_limit, 64001 - 640, 64001).valid
     strict = HealthLimits(max_late_fraction=0.0, max_worst_stall=0.0005)
     health = judge_run(CLEAN, 64001, 64001, strict)
@@ -71,10 +75,11 @@ def test_driver_node_keys_judge_the_latency_only_and_note_the_rest():
     health = judge_run(DRIVER, 64001, 64001)
     assert health.valid, health.reasons
     assert math.isnan(health.late_samples) and math.isnan(health.worst_stall)
-    assert len(health.notes) == 2 and 'late samples' in health.notes[0], health.notes
+    assert len(health.notes) == 3 and 'late samples' in health.notes[0], health.notes
+    assert 'missed samples' in health.notes[1], health.notes
     assert any('not judged' in line and 'worst stall' in line for line in health.lines())
     bad = judge_run({**DRIVER, 'latency p99 (ms)': '9'}, 64001, 64001)
-    assert bad.reasons == ('sample -> command latency p99 9.0 ms > 2 ms',)
+    assert bad.reasons == ('sample -> command latency p99 9.0 ms > 5 ms',)
 
 
 def test_na_values_are_not_judged():

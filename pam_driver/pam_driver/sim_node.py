@@ -118,6 +118,7 @@ from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
+from pam_common.run_health import LATE_SAMPLES, MISSED_SAMPLES, SAMPLES_TAKEN, WORST_STALL_MS
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.timing import DeadlineSchedule, RateStatistics
@@ -468,12 +469,12 @@ class SimNode(LinkedNode):
             if self._lockstep:
                 values['republished samples'] = self._republished
             else:       # since the start or ~/reset_statistics
-                values.update({'samples taken': window.total_samples
+                values.update({SAMPLES_TAKEN: window.total_samples
                                + window.total_skipped_periods,
-                               'late samples': window.total_late_steps
+                               LATE_SAMPLES: window.total_late_steps
                                + window.total_skipped_periods,
-                               'missed samples': window.total_skipped_periods,
-                               'worst stall (ms)': window.max_lateness_total * 1e3})
+                               MISSED_SAMPLES: window.total_skipped_periods,
+                               WORST_STALL_MS: window.max_lateness_total * 1e3})
                 values.update(self._timing.histogram.summary())
             new_bad = bad - self._reported['bad']
             new_past = self._past_commands - self._reported['past']
