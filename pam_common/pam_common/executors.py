@@ -217,6 +217,20 @@ def prefer_asynchronous_publication() -> str:
     return os.environ.setdefault(PUBLICATION_MODE_VARIABLE, PUBLICATION_MODE)
 
 
+#: s, the interpreter's thread switch interval in our node processes (Python's default: 5 ms)
+SWITCH_INTERVAL = 0.0005
+
+
+def shorten_switch_interval() -> float:
+    """A thread waiting for the GIL gets it after SWITCH_INTERVAL s instead of Python's 5 ms: a
+    sampling thread (sim_node's realtime sampler, driver_node's serial reader) competes for the
+    GIL with the executor thread, and must not miss a 1 kHz deadline behind a callback. A
+    process-wide knob, so set here once for every node process and container, whichever nodes
+    it holds (the nodes themselves leave it alone). Returns the interval in force."""
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    return sys.getswitchinterval()
+
+
 def freeze_heap() -> None:
     """Move every object alive now (the imported modules, numba's compiled kernels, the nodes)
     out of the garbage collector's reach (gc.freeze), once the nodes are built: a full
@@ -236,7 +250,10 @@ def run_nodes(components: Sequence[Component], name: str, args=None,
     destroyed in reverse order; otherwise as run_node (which is this with one component). A
     ConfigError of any node is one line naming that node, exit code 2, and the nodes already
     built are destroyed. Only a single node may be a finite one (a `finished` Future).
-    `on_started(nodes)` runs once every node is built and on the executor."""
+    `on_started(nodes)` runs once every node is built and on the executor. The process-wide
+    knobs are set here, for whichever nodes the process holds: FastDDS's publication mode
+    (prefer_asynchronous_publication), the thread switch interval (shorten_switch_interval),
+    the frozen heap (freeze_heap)."""
     from .node_params import ConfigError
     from .params_files import report_ros_args_problem
     code = report_ros_args_problem(sys.argv if args is None else args, name)
@@ -244,6 +261,7 @@ def run_nodes(components: Sequence[Component], name: str, args=None,
         return code
     kwargs = list(node_kwargs) if node_kwargs is not None else [{} for _ in components]
     prefer_asynchronous_publication()
+    shorten_switch_interval()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_signals = StopSignals()
     stop_signals.install()

@@ -22,7 +22,7 @@ def urdf_path() -> Path:
     """The installed URDF, share/pam_description/urdf/pam_joint.urdf."""
     try:
         share = Path(get_package_share_directory('pam_description'))
-    except PackageNotFoundError as error:
+    except (PackageNotFoundError, OSError) as error:    # OSError: AMENT_PREFIX_PATH unset
         raise JointDescriptionError(
             f'package pam_description is not installed (not in the ament index of '
             f'AMENT_PREFIX_PATH): {error}') from error

@@ -39,7 +39,7 @@ from __future__ import annotations
 from functools import cache
 
 from pam_common.joint_description import JointDescriptionError, default_joint_name
-from pam_common.node_params import ParamSpec, fail
+from pam_common.node_params import Deferred, ParamSpec, fail
 
 RATE_RANGE = (0.0, 10000.0)     # Hz; 0: off
 #: The default rate: every sample at the stack's 1 kHz, and every sample of a slower rig too
@@ -50,8 +50,9 @@ DEFAULT_RATE = 1000.0
 @cache
 def urdf_joint_name() -> tuple[str, str]:
     """(the revolute joint's name in pam_description's URDF, '') or ('', why there is none):
-    the default of joint_name. Without the URDF installed the default is '' and a node refuses
-    to start unless joint_name is given (check_joint_states), instead of failing on import."""
+    the default of joint_name, read when first needed (a Deferred default: importing a node's
+    parameter table reads no file and needs no AMENT_PREFIX_PATH). Without the URDF installed the
+    default is '' and a node refuses to start unless joint_name is given (check_joint_states)."""
     try:
         return default_joint_name(), ''
     except JointDescriptionError as error:
@@ -63,7 +64,7 @@ def joint_state_params(topic: str, what: str, note: str = '') -> tuple[ParamSpec
     JointState topic ('joint_states'), `what` what it carries ('the measured joint'), `note`
     added to the rate's description."""
     return (
-        ParamSpec('joint_name', urdf_joint_name()[0], 'string', '',
+        ParamSpec('joint_name', Deferred(lambda: urdf_joint_name()[0]), 'string', '',
                   f'Name of the joint in the sensor_msgs/JointState on {topic} ({what}); '
                   "default: the revolute joint of pam_description's URDF."),
         ParamSpec('joint_states_rate', DEFAULT_RATE, 'double', 'Hz',

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import textwrap
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,8 +22,17 @@ class ConfigError(ValueError):
 
 
 @dataclass(frozen=True)
+class Deferred:
+    """A default known only when first needed, e.g. read from an installed file: a parameter
+    table built at import time must not read it then (importing a node's config module needs no
+    ROS environment). `resolve()` is called at each use: cache it if it is costly."""
+
+    resolve: Callable[[], Any]
+
+
+@dataclass(frozen=True)
 class ParamSpec:
-    """One ROS parameter of a node."""
+    """One ROS parameter of a node. `default` may be Deferred: default_value() resolves it."""
 
     name: str
     default: Any
@@ -34,14 +43,17 @@ class ParamSpec:
     range: tuple | None = None
     read_only: bool = True
 
+    def default_value(self) -> Any:
+        """The default, a Deferred one resolved now."""
+        return self.default.resolve() if isinstance(self.default, Deferred) else self.default
+
     def default_text(self) -> str:
-        if isinstance(self.default, str):
-            return repr(self.default)
-        if isinstance(self.default, bool):
-            return 'true' if self.default else 'false'
-        if isinstance(self.default, list):
-            return '[' + ', '.join(repr(v) for v in self.default) + ']'
-        return repr(self.default)
+        default = self.default_value()
+        if isinstance(default, bool):
+            return 'true' if default else 'false'
+        if isinstance(default, list):
+            return '[' + ', '.join(repr(v) for v in default) + ']'
+        return repr(default)
 
 
 #: The row every node's parameter table holds: the hardware_id of its /diagnostics status
@@ -54,7 +66,8 @@ HARDWARE_ID_PARAM = ParamSpec(
 
 def defaults(specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """The default value of every parameter (lists copied)."""
-    return {s.name: (list(s.default) if isinstance(s.default, list) else s.default) for s in specs}
+    values = {s.name: s.default_value() for s in specs}
+    return {name: (list(v) if isinstance(v, list) else v) for name, v in values.items()}
 
 
 def merge_overrides(specs: Sequence[ParamSpec], overrides: Mapping[str, Any] | None) -> dict:
@@ -286,11 +299,13 @@ def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     for spec in specs:
         # an empty list has no element type: declare such a parameter by its type instead
         array_type = ARRAY_TYPES.get(spec.type_name)
-        default = (getattr(Parameter.Type, array_type)
-                   if array_type and not spec.default else spec.default)
+        default = spec.default_value()
+        empty_array = array_type and not default
+        if empty_array:
+            default = getattr(Parameter.Type, array_type)
         try:
             writable = descriptor(spec)
-            if array_type and not spec.default:
+            if empty_array:
                 writable.read_only = False      # read-only once it has a value
             value = node.declare_parameter(spec.name, default, writable).value
             if value is None and array_type:

@@ -64,6 +64,19 @@ def child_env(domain_id: int) -> dict:
     return env
 
 
+def assert_imports_without_ament(module: str) -> None:
+    """`python -c "import <module>"` succeeds in a process without AMENT_PREFIX_PATH (no ROS
+    environment): a node's parameter table reads nothing installed at import, and its URDF
+    default (joint_name, a Deferred one) is then '' instead of an error."""
+    env = {k: v for k, v in os.environ.items() if k != 'AMENT_PREFIX_PATH'}
+    code = (f'import {module} as m; from pam_common.node_params import defaults; '
+            "print(repr(defaults(m.PARAMETERS).get('joint_name')))")
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True,
+                          check=False, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "''", done.stdout
+
+
 def wait_until(predicate, timeout: float, period: float = 0.01) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:

@@ -10,7 +10,7 @@ from pam_common.joint_states import (
     joint_states_every,
     urdf_joint_name,
 )
-from pam_common.node_params import ConfigError, check_all, defaults
+from pam_common.node_params import ConfigError, Deferred, check_all, defaults
 
 
 def test_every_nth_sample():
@@ -23,6 +23,8 @@ def test_every_nth_sample():
 
 def test_the_defaults_come_from_the_urdf():
     specs = joint_state_params('joint_states', 'the joint')
+    assert isinstance(specs[0].default, Deferred)         # read when needed, not at import
+    assert specs[0].default_text() == "'seesaw_joint'"
     values = check_all(specs, defaults(specs))
     assert urdf_joint_name() == ('seesaw_joint', '')
     assert values == {'joint_name': 'seesaw_joint', 'joint_states_rate': 1000.0}

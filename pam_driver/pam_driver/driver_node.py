@@ -176,7 +176,8 @@ class DriverNode(LinkedNode):
             f"port {self.config['port']} at {self.config['baud']} baud, calibration "
             f'{self.cal.source}; watchdog {self.config["watchdog_timeout"] * 1e3:g} ms, safe '
             f'output {list(self._core.output)} V, {"armed" if self._core.armed else "disarmed"}')
-        sys.setswitchinterval(0.0005)
+        # the reader competes for the GIL with the executor thread: run_nodes shortens the
+        # process's switch interval (pam_common.executors.shorten_switch_interval)
         self._thread = threading.Thread(target=self._reader_loop, name='driver_reader',
                                         daemon=True)
         self._thread.start()

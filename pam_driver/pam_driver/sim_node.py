@@ -254,9 +254,8 @@ class SimNode(LinkedNode):
                 self._lockstep_timer = self.create_timer(max(timeout / 4.0, 0.005),
                                                          self._on_lockstep_watchdog)
         else:
-            # The sampler competes for the GIL with the executor thread: hand it over sooner
-            # than the default 5 ms so a deadline is not missed behind a callback.
-            sys.setswitchinterval(0.0005)
+            # The sampler competes for the GIL with the executor thread: run_nodes shortens
+            # the process's switch interval (pam_common.executors.shorten_switch_interval).
             self._thread = threading.Thread(target=self._realtime_loop, name='sim_node_sampler',
                                             daemon=True)
             self._thread.start()
