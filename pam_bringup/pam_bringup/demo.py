@@ -52,9 +52,11 @@ from pathlib import Path
 import yaml
 
 from pam_common.executables import executable_candidates, find_executable
+from pam_common.timer_floor import measure_timer_floor
 
 from .demo_workflow import (
     CAMPAIGNS,
+    REALTIME_PRIORITY,
     REALTIME_RUN,
     DemoPaths,
     batch_comparison,
@@ -251,6 +253,10 @@ def main(argv=None) -> int:
     if steps.interrupted:
         return 130
 
+    # the machine's own timer, at the run's priority, just before it: the baseline its late
+    # samples are read against (a bare sleep loop is already late now and then on a VM)
+    floor = measure_timer_floor(priority=REALTIME_PRIORITY)
+    print(f'demo: this machine now: {floor.line()}', flush=True)
     realtime, code = track(args, exe, paths, params, env, steps)
     log = paths.logs / f'tracking_{REALTIME_RUN}.log'
     if log.is_file():
@@ -259,7 +265,7 @@ def main(argv=None) -> int:
     health = (realtime or {}).get('health') or {}
     valid = code == 0 and bool(realtime) and realtime.get('valid') is True
     write_json(paths.summary, demo_summary(args.scenario, args.campaign, identification,
-                                           comparison, realtime, valid))
+                                           comparison, realtime, valid, floor.as_dict()))
     if realtime is not None and realtime.get('valid') is False:
         print('demo: INVALID: the real-time run was not real time on this machine ('
               + '; '.join(health.get('reasons') or ['no reason given'])

@@ -209,13 +209,16 @@ def batch_comparison(scenario: str, models: dict, settings: dict, duration: floa
 
 
 def demo_summary(scenario: str, campaign: str, identification: dict, comparison: dict,
-                 realtime: dict | None, valid: bool) -> dict:
+                 realtime: dict | None, valid: bool, timer_floor: dict | None = None) -> dict:
     """out/demo_summary.json: the scenario, the campaign, what identification left at the
     prior; 'comparison': per model ('nominal', 'identified') the batch closed loop's figures
-    (batch_comparison); 'realtime': the identified real-time run's tracking_report summary with
-    its 'health'; 'valid': whether that run was real time (its figures are results)."""
+    (batch_comparison); 'timer_floor': the machine's own timer measured just before the
+    real-time run (pam_common.timer_floor); 'realtime': the identified real-time run's
+    tracking_report summary with its 'health'; 'valid': whether that run was real time (its
+    figures are results)."""
     return {'scenario': scenario, 'campaign': campaign, 'identification': identification,
-            'comparison': comparison, 'realtime': realtime, 'valid': valid}
+            'comparison': comparison, 'timer_floor': timer_floor, 'realtime': realtime,
+            'valid': valid}
 
 
 def settling(seconds) -> str:

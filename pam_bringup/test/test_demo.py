@@ -105,6 +105,9 @@ def test_the_demo_runs_the_workflow_and_stops_the_stack(node_process, ros_domain
         assert summary['realtime']['health']['valid'] is False, summary['realtime']
     assert stdout.startswith(f"demo: scenario 'realistic', campaign 'quick'; "
                              f'ROS_DOMAIN_ID={ros_domain}; logs in {out}/logs/\n'), stdout
+    # the machine's timer floor, measured just before the real-time run, printed and kept
+    assert 'demo: this machine now: a bare 1000 Hz sleep loop (' in stdout, stdout
+    assert summary['timer_floor']['deadlines'] == 3000, summary['timer_floor']
     for step in ('1/4 calibration campaign', '2/4 identification', '3/4 batch comparison',
                  '4/4 real-time sensor-less tracking with the identified model'):
         assert f'demo: {step}' in stdout, stdout

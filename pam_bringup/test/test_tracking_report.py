@@ -126,7 +126,8 @@ def test_the_estimation_error_is_printed_whole_and_after_the_transient(node_proc
     assert int(after[1]) < int(whole[1]), report.stdout
     assert 'INVALID' not in report.stdout, report.stdout
     assert re.search(r'^  real-time health: \d+ of \d+ samples received \(0 lost\), rig: 0 late '
-                     r'samples \(0 missed\) of 3200, .*: VALID$', report.stdout, re.MULTILINE), report.stdout
+                     r'samples \(0 missed\) of 3200, .*: VALID$', report.stdout,
+                     re.MULTILINE), report.stdout
     assert summary['valid'] is True and summary['health']['valid'] is True, summary
     assert summary['health']['samples_lost'] == 0 and summary['health']['samples_sent'] > 2900
 

@@ -28,8 +28,8 @@ def test_a_clean_run_is_valid_and_says_so_in_one_line():
     assert health.latency_p99 == pytest.approx(0.00048)
     assert health.lines() == [
         'real-time health: 64001 of 64001 samples received (0 lost), rig: 0 late samples '
-        '(0 missed) of 64001, worst stall 0.90 ms; sample -> command at the rig p50 0.21 / p99 0.48 / max 2.1 ms, '
-        '0.1 % after the next sample: VALID']
+        '(0 missed) of 64001, worst stall 0.90 ms; sample -> command at the rig p50 0.21 / '
+        'p99 0.48 / max 2.1 ms, 0.1 % after the next sample: VALID']
 
 
 def test_numbers_are_taken_as_well_as_strings():
