@@ -28,8 +28,10 @@ ROS domain of their own. After --warmup s the rigs' latency statistics are reset
 --scenario NAME sets the simulated rig's scenario (default: bringup.yaml's), --identified DIR
 ukf_node's model (params.yaml, kappa.csv, extensions.yaml of a pam-identify output directory).
 --rig driver runs the driver path instead: per joint a pam-emulator (the DAQ board on a pty, its
-plant simulated) and driver_node, armed once the loop runs; the latency is then timed by
-driver_node (the host's end of the serial line). --hog N starts N CPU-bound processes
+plant simulated, on --scenario if given) and driver_node, armed once the loop runs; the latency
+is then timed by driver_node (the host's end of the serial line), and the window's driver
+watchdog trips (the safe output after 50 ms without a command) and board vents (the board's own
+250 ms watchdog) are printed: a real rig's loop opened. --hog N starts N CPU-bound processes
 (`while True: pass`) beside the stack first.
 Modes separate+rt and composed+rt are the same with the real-time knobs on every node (-p
 thread_priority:=--realtime, default 80; cpu_affinity:=--rt-cpus; lock_memory with
@@ -109,15 +111,16 @@ def knob_args(mode: str, args) -> list[str]:
 
 def commands(mode: str, rig: str, spaces: list[str], params: Path,
              ports: dict[str, str], knobs: list[str] = (),
-             containers: int = 1) -> list[tuple[str, list[str]]]:
+             containers: int = 1, scenario: str | None = None) -> list[tuple[str, list[str]]]:
     """(label, argv) of every process of the mode (its knobs: knob_args): the emulated boards
-    first (driver path)."""
+    first (driver path; their plant on `scenario` if given)."""
     ros = ['--ros-args', '--params-file', str(params), *knobs]
     mode = mode.removesuffix('+rt')
     links = ['--links'] if mode == 'linked' else []
     mode = 'composed' if mode == 'linked' else mode
+    plant = ['--mismatch', scenario] if scenario else []
     boards = [(f'{ns} pam-emulator', [exe('pam-emulator', 'pam_driver'), '--link', ports[ns],
-                                      '--initial-command', '5.5', '5.5'])
+                                      '--initial-command', '5.5', '5.5', *plant])
               for ns in spaces if rig == 'driver']
     if mode == 'composed':
         groups = [spaces[k::containers] for k in range(min(containers, len(spaces)))]
@@ -175,7 +178,14 @@ def counters(diag: Diagnostics, spaces: list[str]) -> dict[str, float]:
                for n in ('ukf_node', 'pi_node'))
     late = sum(diag.value(f'{ns}/sim_node', 'late samples') for ns in spaces)
     taken = sum(diag.value(f'{ns}/sim_node', 'samples taken') for ns in spaces)
-    return {'lost': lost, 'late samples': late, 'samples': taken}
+    # the driver path: the driver's command watchdog (safe output) and the board's own (vent)
+    driver = {key: sum(diag.value(f'{ns}/driver_node', key) for ns in spaces)
+              for key in DRIVER_TRIPS}
+    return {'lost': lost, 'late samples': late, 'samples': taken, **driver}
+
+
+#: driver_node's counters of the loop opened on the real rig's path
+DRIVER_TRIPS = ('watchdog trips', 'board vents', 'samples received')
 
 
 def call(node, executor, service: str) -> None:
@@ -198,7 +208,8 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
     procs = [(label, subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True))
              for label, argv in commands(mode, rig, spaces, params, ports,
-                                         knob_args(mode, args), args.containers)]
+                                         knob_args(mode, args), args.containers,
+                                         args.scenario)]
     try:
         rig_name = stack_nodes(rig)[0].name
         sims = [f'{ns}/{rig_name}' for ns in spaces]
@@ -251,6 +262,7 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
             'late %': 100.0 * late / timed if timed else math.nan, 'commands': timed,
             'lost': after['lost'] - before['lost'],
             'late samples': after['late samples'] - before['late samples'],
+            **{key: after[key] - before[key] for key in DRIVER_TRIPS},
             'cpu per sample': (sum(cpu1.values()) - sum(cpu0.values()))
             / (after['samples'] - before['samples'])
             if after['samples'] > before['samples'] else math.nan}
@@ -324,6 +336,11 @@ def print_results(results: list[dict], joints: int, hogs: int, duration: float,
         print(f"{r['mode']:<11} {r['processes']:>5} {r['cpu total']:>7.1f} {r['p50']:>7.3f} "
               f"{r['p99']:>7.3f} {r['p99.9']:>8.3f} {r['max']:>7.2f} {r['late %']:>7.2f} "
               f"{r['lost']:>5.0f} {r['late samples']:>8.0f} {r['commands']:>9.0f}")
+    if rig == 'driver':
+        for r in results:
+            print(f"  {r['mode']}: driver_node {r['samples received']:.0f} samples received, "
+                  f"command watchdog trips (safe output) {r['watchdog trips']:.0f}, board vents "
+                  f"{r['board vents']:.0f}")
     for r in results:
         print(f"  {r['mode']} CPU per process: "
               + ', '.join(f'{label} {c:.1f}' for label, c in r['cpu'].items()))
