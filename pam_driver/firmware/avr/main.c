@@ -72,14 +72,42 @@ ISR(USART0_RX_vect)
     rx_head = next;
 }
 
-ISR(USART0_UDRE_vect)
+/* One byte of the TX ring per interrupt: 1 Mbaud is a byte every 160 cycles, so this ISR is the
+ * firmware's hottest code; naked, it saves 4 registers instead of gcc's 8 (the ring is 256 bytes:
+ * the 8-bit index wraps by itself). */
+ISR(USART0_UDRE_vect, ISR_NAKED)
 {
-    if (tx_head == tx_tail) {
-        UCSR0B &= (uint8_t)~_BV(UDRIE0);
-        return;
-    }
-    UDR0 = tx_ring[tx_tail];
-    tx_tail = (uint8_t)(tx_tail + 1);
+    __asm__ volatile(
+        "push r24\n\t"
+        "in r24, __SREG__\n\t"
+        "push r24\n\t"
+        "push r30\n\t"
+        "push r31\n\t"
+        "lds r30, %[tail]\n\t"
+        "lds r24, %[head]\n\t"
+        "cp r30, r24\n\t"
+        "breq 1f\n\t"
+        "ldi r31, 0\n\t"
+        "subi r30, lo8(-(%[ring]))\n\t"
+        "sbci r31, hi8(-(%[ring]))\n\t"
+        "ld r24, Z\n\t"
+        "sts %[udr], r24\n\t"
+        "lds r24, %[tail]\n\t"
+        "inc r24\n\t"
+        "sts %[tail], r24\n\t"
+        "rjmp 2f\n\t"
+        "1: lds r24, %[ucsrb]\n\t"
+        "andi r24, %[not_udrie]\n\t"
+        "sts %[ucsrb], r24\n\t"
+        "2: pop r31\n\t"
+        "pop r30\n\t"
+        "pop r24\n\t"
+        "out __SREG__, r24\n\t"
+        "pop r24\n\t"
+        "reti\n\t"
+        :: [tail] "i" (&tx_tail), [head] "i" (&tx_head), [ring] "i" (tx_ring),
+           [udr] "n" (_SFR_MEM_ADDR(UDR0)), [ucsrb] "n" (_SFR_MEM_ADDR(UCSR0B)),
+           [not_udrie] "n" ((uint8_t)~_BV(UDRIE0)));
 }
 
 static void uart_tx(const uint8_t *bytes, uint8_t n, void *ctx)

@@ -135,7 +135,7 @@ static void on_cal_write(board_t *b, const frame_t *f)
     send_cal(b, CAL_OK);
 }
 
-static void on_frame(board_t *b, const frame_t *fp)
+__attribute__((noinline)) static void on_frame(board_t *b, const frame_t *fp)
 {
     frame_t f = *fp;
     static const uint8_t need[8] = {0xFF, 2, 4, 0, 0, 0, CALIB_SIZE - 2, 0};
@@ -259,7 +259,9 @@ void board_tick(board_t *b, const board_inputs_t *in)
     uint8_t status = board_status(b) | (in->estop ? ST_ESTOP : 0);
     if (b->streaming) {
         send_sample(b, p, in, status);
-        if (b->tick % HEARTBEAT_EVERY == 0)
+        if (++b->heartbeat_in >= HEARTBEAT_EVERY) {
+            b->heartbeat_in = 0;
             send_heartbeat(b, status);
+        }
     }
 }

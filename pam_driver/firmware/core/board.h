@@ -61,6 +61,7 @@ typedef struct {
     void *ctx;
     uint16_t seq;
     uint32_t tick;
+    uint8_t heartbeat_in;               /* samples since the last DEVICE_HEARTBEAT */
     uint32_t ms_since_host;             /* sample periods since the last valid host frame */
     uint8_t streaming;
     uint8_t commanded;                  /* a COMMAND applied in this session */

@@ -87,8 +87,11 @@ uint8_t calib_valid(const calib_t *c)
 
 uint16_t calib_pressure(const calib_t *c, uint8_t ch, uint16_t raw)
 {
-    int32_t v = (int32_t)raw - c->zero_offset[ch] - c->nominal_zero;
-    v = c->nominal_zero + ((v * (int32_t)c->gain_q14[ch]) >> 14);
+    /* |raw - offset - zero| < 2^15 and gain < 2^16: a 16 x 16 -> 32 bit product (the AVR's
+     * hardware multiplier, not a 32-bit software one) */
+    int16_t d = (int16_t)((int16_t)raw - c->zero_offset[ch] - (int16_t)c->nominal_zero);
+    int32_t prod = ((int32_t)d * c->gain_q14[ch]) * 4;      /* >> 14 as << 2, >> 16 */
+    int32_t v = (int32_t)c->nominal_zero + (int16_t)(prod >> 16);
     if (v < 0)
         return 0;
     return v > (int32_t)ADC_FULL_SCALE ? ADC_FULL_SCALE : (uint16_t)v;

@@ -19,6 +19,10 @@ uint8_t frame_decoder_feed(frame_decoder_t *d, uint8_t byte, frame_t *out)
     if (d->n >= FRAME_MAX)              /* cannot happen: a frame is complete at FRAME_MAX */
         drop(d, 1);
     d->buf[d->n++] = byte;
+    /* fast path: SYNC already checked (n > 2), header incomplete or payload still to come */
+    if (d->n > 2 && (d->n < FRAME_HEADER ||
+                     (d->buf[5] <= FRAME_MAX_PAYLOAD && d->n < FRAME_OVERHEAD + d->buf[5])))
+        return 0;
     return frame_decoder_next(d, out);
 }
 
