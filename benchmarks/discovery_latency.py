@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""When does a subscriber that exists before the stack starts get each topic? (issue 13, point 8)
+"""When does a subscriber that exists before the stack starts get each topic?
 
 Each round: a probe node (this process, one rclpy context for all rounds, a fresh node per round,
 as the tests' probe fixture does) subscribes /pam/pressures and /pam/estimate; then sim_node and

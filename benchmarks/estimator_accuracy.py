@@ -6,7 +6,8 @@ its sensor model; free joint for the angle, locked joint for the torque; the fil
 nominal parameters). Targets: UKF Q_psi <= 4.0 %, Q_tau <= 3.5 %, and the UKF beats the model
 alone on I, M and Q for both (the paper's whole-run metrics). Beside them: the same metrics after
 the initial transient (--transient, t >= 1 s); both estimators start from the measured state
-(pam_estimator.evaluation.start_state; --start recorded: the plant's true x0, as before issue 17).
+(pam_estimator.evaluation.start_state; --start recorded: the plant's true x0, pam-evaluate's
+former default).
 
     .venv/bin/python benchmarks/estimator_accuracy.py [--seed 0] [--tuning default|paper]
         [--transient 1] [--start measured|recorded]

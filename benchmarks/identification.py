@@ -2,7 +2,7 @@
 """Parameter identification before/after (pam-identify issue, section 3).
 
 For each plant mismatch ('mild'; 'strong' = twice its deviations; 'realistic' = 'mild' plus
-the unmodelled effects of a real rig, issue 17), with the installed tools as a user runs them:
+the unmodelled effects of a real rig), with the installed tools as a user runs them:
   1. pam-calibration-bags: the calibration campaign (locked at -15/0/+15 deg, free) and, with
      another seed, 130 s validation bags (free and locked) on that plant, as bags;
   2. pam-identify on the calibration bags (prints the parameter table with the true values and
@@ -12,7 +12,7 @@ the unmodelled effects of a real rig, issue 17), with the installed tools as a u
      parameters, the identified ones without extensions, and the identified ones with their
      extensions.yaml.
 Targets (with extensions): UKF Q_psi <= 2 % and Q_tau <= 1.5 % on 'mild'/'strong', <= 1.5 % and
-<= 1.0 % on 'realistic' (issue 17; the paper's whole-run Q); identifiable parameters within a few
+<= 1.0 % on 'realistic' (the paper's whole-run Q); identifiable parameters within a few
 percent of the plant's (printed per parameter by pam-identify; here the largest). The summary
 also gives the UKF's I / M / Q after the initial transient (--transient, t >= 1 s), where the
 filter's start no longer sets M.
@@ -41,7 +41,7 @@ from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
 TARGET_Q = {'angle': 0.020, 'torque': 0.015}
-#: Issue 17's targets on the realistic rig.
+#: The targets on the realistic rig (README, docs/identification.md).
 TARGET_Q_REALISTIC = {'angle': 0.015, 'torque': 0.010}
 #: Identifiable quantities and how to read them from a parameter set (effective areas: k1 A).
 IDENTIFIABLE = {

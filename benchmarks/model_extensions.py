@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The estimator's model extensions on the 'realistic' rig (issue 17 item 2,
+"""The estimator's model extensions on the 'realistic' rig (
 docs/model_extensions.md): validation profile (seed 1) on the realistic plant (its mild parameter
 mismatch and every unmodelled effect), free and locked; the model alone and the UKF, both with
 the TRUE mild parameters, without extensions and with each of the scenario's estimator-side

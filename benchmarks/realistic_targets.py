@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Issue 17's targets: the estimator and the sensor-less loop on the `realistic` rig (and `mild`)
-after identification, over three profile seeds.
+"""The realistic rig's targets: the estimator and the sensor-less loop on the `realistic` rig
+(and `mild`) after identification, over three profile seeds.
 
 Per scenario, with the installed tools as a lab runs them:
   1. pam-calibration-bags: the calibration campaign on the simulated plant (its parameter

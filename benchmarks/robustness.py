@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Robustness benchmark (issue 17 item 3): the installed pam-robustness with its defaults, as a
+"""Robustness benchmark: the installed pam-robustness with its defaults, as a
 user runs it, with the machine's load beside its time.
 
 Every unmodelled effect (and all at once) at 0, 0.5, 1, 2 x its realistic value on the 'mild'

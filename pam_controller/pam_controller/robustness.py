@@ -1,4 +1,4 @@
-"""pam-robustness's computation (issue 17 item 3), no ROS: which imperfection of a rig matters.
+"""pam-robustness's computation, no ROS: which imperfection of a rig matters.
 
 For every plant of robustness_plants.sweep_plants (an effect at a magnitude, or a Monte Carlo
 parameter draw) it runs

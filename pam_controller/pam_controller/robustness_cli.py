@@ -1,4 +1,4 @@
-"""pam-robustness: which imperfection of a rig matters, and how much (issue 17 item 3).
+"""pam-robustness: which imperfection of a rig matters, and how much.
 
 Sweeps each unmodelled effect (pam_model.effects) over its magnitude on top of a base mismatch,
 and Monte Carlo parameter deviations, through the estimators and the sensor-less closed loop

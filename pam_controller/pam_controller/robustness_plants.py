@@ -1,4 +1,4 @@
-"""The plants pam-robustness sweeps (issue 17 item 3), no ROS, no running.
+"""The plants pam-robustness sweeps, no ROS, no running.
 
 Each sweep scales one unmodelled effect of pam_model.effects (or all of them, or the parameter
 deviations) by a magnitude m, on top of a base mismatch scenario (default 'mild'):

@@ -1,4 +1,4 @@
-"""The simulated supply-pressure transducer (issue 17 item 2): P_tank of a SimulatedRig, measured.
+"""The simulated supply-pressure transducer: P_tank of a SimulatedRig, measured.
 
 sim_node (publish_supply_pressure) and pam-emulator (--supply-sensor) read the supply line of
 the plant they step through it. No ROS in here.

@@ -10,8 +10,8 @@ Both start from one state, start_state(run, start):
 * 'measured' (the default): what the rig measures at sample 0: the measured angle and angular
   velocity and the first MEASURED pressures (noisy, as a live filter starts; with the sensor
   extensions, read through them as the UKF reads every sample);
-* 'recorded': the run's recorded state x[0] (the behaviour before issue 17): in a bag the same as
-  'measured' (a bag's x holds the measured pressures); in a pam-simulate run the TRUE pressures,
+* 'recorded': the run's recorded state x[0] (pam-evaluate's former default): in a bag the same
+  as 'measured' (a bag's x holds the measured pressures); in a pam-simulate run the TRUE pressures,
   which no estimator on a rig can know. MODEL.md fixes no initial state; the metrics' definitions
   do not depend on the start.
 

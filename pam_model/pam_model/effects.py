@@ -1,4 +1,4 @@
-"""Unmodelled effects of a real rig, for the simulated plant only (issue 17): each one off by
+"""Unmodelled effects of a real rig, for the simulated plant only: each one off by
 default, set in the `effects:` section of a mismatch scenario YAML. SI units; pressures absolute.
 
 The paper's model (MODEL.md, ``physics.py``) stays the default path: with every effect off the

@@ -1,4 +1,4 @@
-"""The estimator's answers to a real rig (issue 17 item 2): the unmodelled effects of
+"""The estimator's answers to a real rig: the unmodelled effects of
 ``pam_model.effects`` that the ESTIMATOR's model may carry too, each off by default, identified by
 pam-identify where the calibration runs reveal them and written to ``extensions.yaml`` beside the
 identified ``params.yaml``.

@@ -2,7 +2,7 @@
 
 It holds the true state, the last valve command (held between samples like real valves), the
 pressure sensor and its random generator, and counts the commands it had to sanitise. With
-unmodelled effects on (pam_model.effects, issue 17) it steps through an EffectsPlant, which
+unmodelled effects on (pam_model.effects) it steps through an EffectsPlant, which
 carries their internal states; with every effect off it steps the paper's model exactly as before.
 """
 

@@ -63,7 +63,7 @@ def body(argv=None) -> int:
     model, scenario = build_model(args)
     plan = CampaignPlan(lock_angles=args.angles, hold=args.hold, pair_hold=args.pair_hold,
                         voltages=args.voltages, free_duration=args.free_duration, seed=args.seed)
-    # the scenario's unmodelled effects too (issue 17: a 'realistic' rig), not only its sensor
+    # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor
     runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects)
     if args.validation > 0.0:
         profile = validation_profile(args.seed + 1, args.validation, model.h)

@@ -24,7 +24,7 @@ from .sensor_fit import corrected, fit_sensors
 from .valve_fit import fit_valve_map
 
 #: The valve spool's lag is not fitted: at 1 kHz, 5 ms of lag against pressure time constants of
-#: 0.1-4 s changes the transients by less than the sensor noise (issue 17: invisible).
+#: 0.1-4 s changes the transients by less than the sensor noise (invisible).
 VALVE_LAG_NOTE = ('not identified: a spool lag of a few ms is invisible against the 0.1-4 s '
                   'pressure transients of the calibration runs; kept 0')
 
