@@ -1,4 +1,4 @@
-"""bag_record and bag_play log through their rclpy loggers (issue 15, Logging): the end summaries
+"""bag_record and bag_play log through their rclpy loggers: the end summaries
 are INFO lines (stderr, and /rosout: a probe subscribed to rcl_interfaces/msg/Log receives
 bag_record's); with `--log-level <node>:=debug` a split file closed (bag_record) and the start of
 a pass (bag_play) are DEBUG lines from our own code; without it there is no DEBUG line."""

@@ -100,7 +100,7 @@ def test_mcap_ros2_decodes_from_the_embedded_schemas_and_the_structure_is_jazzys
 
 
 def test_every_chunk_and_file_carries_its_crc(bag):
-    """Recorded by bag_record with CRCs (chunks, data section, summary; issue 13): verify_bag
+    """Recorded by bag_record with CRCs (chunks, data section, summary): verify_bag
     reads every chunk and finds every CRC present and matching."""
     checks = bags.verify_bag(bag)
     assert [p for check in checks for p in check.problems] == []

@@ -1,4 +1,4 @@
-"""pam_container: the stack's nodes composed in one process (issue 16, item 1).
+"""pam_container: the stack's nodes composed in one process.
 
 Real processes on this module's domain. The composed stack must look the same from outside as
 the separate executables: the same nodes, each with the same publishers, subscriptions and

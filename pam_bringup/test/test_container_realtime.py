@@ -1,4 +1,4 @@
-"""The real-time knobs in a composed process (pam_container, issue 16): every node shares the
+"""The real-time knobs in a composed process (pam_container): every node shares the
 executor thread, which gets the highest priority any node asks for and the union of the CPU
 sets the nodes ask for (a node that asks for none adds no constraint); sim_node's sampler thread
 gets sim_node's own knobs.

@@ -1,4 +1,4 @@
-"""/diagnostics with two complete stacks side by side on one domain (issue 15, item 3).
+"""/diagnostics with two complete stacks side by side on one domain.
 
 Real processes: `pam-bringup` (sim_node, ukf_node, pi_node, reference_node) in /pam and again
 with `--namespace /joint2`, plus one of each tool: bag_record in /pam (hardware_id given as a

@@ -1,5 +1,5 @@
-"""The Foxglove and PlotJuggler layouts (config/foxglove_layout.json, config/plotjuggler_layout.xml;
-issue 15, Layouts): every topic they name is one the stack publishes under /pam
+"""The Foxglove and PlotJuggler layouts (config/foxglove_layout.json,
+config/plotjuggler_layout.xml): every topic they name is one the stack publishes under /pam
 (pam_common.topics) and every field path resolves on that topic's message type (the rosidl
 Python classes' get_fields_and_field_types(), nested fields and array indices included, ending
 on a number or a bool: something a plot can draw); the files have the structure each tool reads

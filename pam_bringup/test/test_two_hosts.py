@@ -1,4 +1,4 @@
-"""The closed loop across two hosts (issue 15 item 8): the rig on one machine, the estimator and the
+"""The closed loop across two hosts: the rig on one machine, the estimator and the
 controller on another, DDS between them over a network link.
 
 The two hosts are two network namespaces joined by a veth pair (two_hosts_support.TwoHosts):

@@ -1,4 +1,5 @@
-"""The layout of issue 14, read from the sources with ast (an import inside a function counts):
+"""The packages' layout (README "Architecture"), read from the sources with ast (an import
+inside a function counts):
 
 (a) production code never imports test support: no installed module (a package's modules and
     launch files, test support modules excepted) imports a package's `testing` module;
@@ -29,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = sorted(p.parent.name for p in ROOT.glob('pam_*/package.xml'))
 TEST_SUPPORT = 'testing'          # a package's test support module: tests only import it
 
-#: Which pam packages each package's installed code may import (the arrows of issue 14).
+#: Which pam packages each package's installed code may import (the layout's arrows).
 ALLOWED = {
     'pam_model': set(),
     'pam_description': set(),
@@ -313,7 +314,7 @@ def test_the_topic_names_and_profiles_stay_as_they_are():
         '/pam', 'pressures', 'joint_measured', 'valve_command', 'estimate', 'controller_state',
         'reference', '~/applied_command', '/diagnostics', '/clock')
     assert (topics.JOINT_STATES, topics.ESTIMATE_JOINT_STATES) == (
-        'joint_states', 'estimate/joint_states')          # sensor_msgs/JointState (issue 15)
+        'joint_states', 'estimate/joint_states')          # sensor_msgs/JointState
     assert topics.absolute(topics.PRESSURES) == '/pam/pressures'
     assert topics.absolute(topics.ESTIMATE, '/x/') == '/x/estimate'
     assert topics.absolute(topics.CLOCK, '/x') == '/clock'

@@ -1,5 +1,5 @@
 """The sensor-less closed loop through the hardware driver reaches the same tracking result as
-with sim_node (issue 6, section 6).
+with sim_node.
 
 The same live loop runs twice per mode, with two rigs: (a) pam-emulator (the DAQ board on a pty)
 + driver_node, (b) sim_node (realtime, 1 kHz); each time with a fresh ukf_node and pi_node, all as

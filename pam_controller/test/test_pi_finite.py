@@ -1,4 +1,4 @@
-"""No term of the PI law becomes non-finite (issue: a finite but huge reference made Kp e
+"""No term of the PI law becomes non-finite (once, a finite but huge reference made Kp e
 overflow and back-calculation compute inf - inf, NaN for good), and ControlLoop clamps a
 reference outside the rig's envelope to it."""
 

@@ -1,4 +1,4 @@
-"""pi_node's DEBUG lines (issue 15, Logging): with `--ros-args --log-level debug` the output going
+"""pi_node's DEBUG lines: with `--ros-args --log-level debug` the output going
 into saturation (and the anti-windup at work) and out of it, and a reference change, each give a
 line from our own code; without it the same run prints no DEBUG line at all."""
 

@@ -1,4 +1,4 @@
-"""pam-robustness (issue 17 item 3) as a user runs it, and the closed loop with a plant that has
+"""pam-robustness as a user runs it, and the closed loop with a plant that has
 unmodelled effects. One --quick run is shared by the tests that read it."""
 
 import itertools

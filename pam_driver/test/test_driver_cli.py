@@ -81,7 +81,7 @@ def test_a_bad_joint_states_rate_is_refused():
 
 
 def test_emulator_builds_the_realistic_plant_and_refuses_bad_effects(tmp_path):
-    """--mismatch realistic (unmodelled effects, issue 17) starts; a bad effects value is one line
+    """--mismatch realistic (unmodelled effects) starts; a bad effects value is one line
     naming the key, exit code 2."""
     out = _run('pam-emulator', '--mismatch', 'realistic', '--duration', '0.5')
     assert out.returncode == 0, out.stderr

@@ -1,4 +1,4 @@
-"""driver_node's DEBUG lines (issue 15, Logging), against pam-emulator over a real pty: with
+"""driver_node's DEBUG lines, against pam-emulator over a real pty: with
 `--log-level pam.driver_node:=debug` a watchdog trip and an ~/arm each give a line with the
 safety state they left; without it there is no DEBUG line."""
 

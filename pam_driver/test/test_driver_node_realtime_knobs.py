@@ -1,4 +1,4 @@
-"""driver_node's real-time knobs (issue 16): against pam-emulator over a real pty, with
+"""driver_node's real-time knobs: against pam-emulator over a real pty, with
 thread_priority 40 and cpu_affinity [1], the executor thread (the main thread) and the serial
 reader thread (`driver_reader`) are logged at INFO with their tids and run at SCHED_FIFO 40 on
 CPU 1 (/proc/<pid>/task/<tid>), the samples stream, and /diagnostics reports both threads."""

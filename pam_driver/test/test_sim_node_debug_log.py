@@ -1,4 +1,4 @@
-"""sim_node's DEBUG line (issue 15, Logging): with `--log-level pam.sim_node:=debug` the valve
+"""sim_node's DEBUG line: with `--log-level pam.sim_node:=debug` the valve
 command applied gives a line when it changes markedly (the first command, then a move of more
 than 0.5 V from the last logged one, a sanitised command as applied); small moves give none;
 without the option the same run prints no DEBUG line at all."""

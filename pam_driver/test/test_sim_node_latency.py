@@ -1,4 +1,4 @@
-"""sim_node's sample -> command latency at the rig (issue 16), a real process seen from topics.
+"""sim_node's sample -> command latency at the rig, a real process seen from topics.
 
 The probe answers samples with valve commands stamped like pi_node's (the stamp of the sample
 they answer): answered at once, a command is timed with a small latency; answered with the stamp

@@ -210,7 +210,7 @@ def test_namespace_remap_overrides_the_default(sim_node, probe, helpers):
 
 
 def test_realistic_plant_keeps_1khz(sim_node, probe, helpers):
-    """-p mismatch:=realistic: the plant with unmodelled effects (issue 17) still samples at
+    """-p mismatch:=realistic: the plant with unmodelled effects still samples at
     1 kHz with finite pressures, and the start-up log names its effects."""
     sim = sim_node('-p', 'mismatch:=realistic')
     got = probe.subscribe(Pressures, '/pam/pressures')

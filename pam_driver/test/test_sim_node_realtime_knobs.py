@@ -1,4 +1,4 @@
-"""sim_node's real-time knobs (thread_priority, cpu_affinity, lock_memory; issue 16), a real
+"""sim_node's real-time knobs (thread_priority, cpu_affinity, lock_memory), a real
 process checked from the outside.
 
 Granted (this machine runs the tests as root: SCHED_FIFO and mlockall are permitted): the INFO

@@ -1,4 +1,4 @@
-"""sim_node's supply_pressure (publish_supply_pressure, issue 17 item 2), a real process over DDS.
+"""sim_node's supply_pressure (publish_supply_pressure), a real process over DDS.
 
 On the `realistic` plant (supply droop 20 kPa at both valves fully open, ripple +-5 kPa at
 0.2 Hz): with both valves at 0 V (alpha 0: nothing drawn from the supply) the readings are the

@@ -1,4 +1,4 @@
-"""The UKF's bias states (issue 17 item 2, docs/model_extensions.md "Bias states"): off, the
+"""The UKF's bias states (docs/model_extensions.md "Bias states"): off, the
 filter is the one it always was, bit for bit; on, a constant pressure-sensor offset is estimated
 by b1, b2 and the pressure estimates no longer carry it; bad input never gives a non-finite
 output; ukf_node's bias_states parameter (a real process on an isolated domain) runs the same

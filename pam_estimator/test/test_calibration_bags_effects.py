@@ -1,4 +1,4 @@
-"""pam-calibration-bags on the 'realistic' rig (issue 17): the scenario's unmodelled effects reach
+"""pam-calibration-bags on the 'realistic' rig: the scenario's unmodelled effects reach
 the bags, not only its sensor. Same seed and profile on 'mild' and on 'realistic' (= 'mild' plus
 the effects: valve lag, dead volume, supply droop, hysteresis, sensor offsets of +2 / -3 kPa...):
 the measured pressures differ by kPa; before, the effects were dropped and the bags were equal."""

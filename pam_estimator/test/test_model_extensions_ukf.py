@@ -1,4 +1,4 @@
-"""The estimator's model extensions (issue 17 item 2, docs/model_extensions.md): the UKF and the
+"""The estimator's model extensions (docs/model_extensions.md): the UKF and the
 model alone carry the effects of pam_model.model_extensions; without them (NO_EXTENSIONS, no
 supply) they compute what the paper's model computed, bit for bit."""
 

@@ -1,4 +1,4 @@
-"""ukf_node's DEBUG lines (issue 15, Logging): with `--log-level pam.ukf_node:=debug` a filter
+"""ukf_node's DEBUG lines: with `--log-level pam.ukf_node:=debug` a filter
 reset (a stamp from the past), a sample the NIS gate rejects (a pressure far from the prediction)
 and an invalid one (out of range) each give a line from our own code; without it the same feed
 prints no DEBUG line at all."""

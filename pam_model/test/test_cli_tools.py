@@ -55,7 +55,7 @@ def test_pam_simulate_writes_a_run(tmp_path):
 
 
 def test_pam_simulate_runs_the_realistic_plant(tmp_path):
-    """--mismatch realistic: the plant with unmodelled effects (issue 17), sample by sample."""
+    """--mismatch realistic: the plant with unmodelled effects, sample by sample."""
     out = tmp_path / 'run.npz'
     result = run(tool('pam-simulate'), '-o', str(out), '--duration', '2', '--mismatch',
                  'realistic')

@@ -1,4 +1,4 @@
-"""The unmodelled effects of the simulated plant (issue 17 item 1, pam_model/effects.py): each
+"""The unmodelled effects of the simulated plant (pam_model/effects.py): each
 effect alone against its equation, every effect off = the paper's plant bit for bit, the two named
 scenarios with exactly the issue's numbers, and bad YAML refused naming the key.
 """

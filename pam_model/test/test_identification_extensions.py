@@ -1,4 +1,4 @@
-"""The estimator's extensions identified from simulated calibration runs (issue 17 item 2).
+"""The estimator's extensions identified from simulated calibration runs.
 
 Each fit on a short campaign of a plant with that effect ALONE (the 'mild' parameters underneath,
 its sensor noise), and on the same campaign without it (the fit must then keep 0: the paper's
