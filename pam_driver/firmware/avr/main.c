@@ -219,6 +219,7 @@ static uint8_t reset_cause(uint8_t mcusr)
 
 int main(void)
 {
+    wdt_enable(WDTO_30MS);              /* first: a board that hangs anywhere resets */
     DDRB = _BV(ADC_CS) | _BV(SCK) | _BV(MOSI) | _BV(DAC_CS) | _BV(DAC_LDAC) | _BV(LED);
     PORTB = _BV(ADC_CS) | _BV(DAC_CS) | _BV(DAC_LDAC) | _BV(LED);
     DDRA &= (uint8_t)~_BV(ESTOP);
@@ -241,7 +242,7 @@ int main(void)
     TCCR1B = _BV(WGM12) | _BV(CS11);    /* CTC, /8: 2 MHz */
     OCR1A = 1999;                       /* 1 kHz */
     TIMSK1 = _BV(OCIE1A);
-    wdt_enable(WDTO_30MS);
+    wdt_reset();
     set_sleep_mode(SLEEP_MODE_IDLE);
     sei();
 

@@ -1,6 +1,7 @@
 /* pam-board-sim: the reference board's ELF on simavr's ATmega2560, wired to a simulated joint.
  *
- *   pam-board-sim FIRMWARE.elf [--link PATH] [--status-file PATH] [--duration S] -- PLANT ARGV...
+ *   pam-board-sim FIRMWARE.elf [--link PATH] [--status-file PATH] [--duration S]
+ *                 [--eeprom PATH] -- PLANT ARGV...
  *
  * The board's USART0 is bridged to a pseudo-terminal of our own (posix_openpt; --link keeps a
  * symlink to its slave like pam-emulator's) at the line's byte rate; the MCP3208 ADC and the
@@ -21,6 +22,8 @@
  * Control on stdin, one command a line: "estop 0|1", "spi_stall MS" (the SPI bus stops answering
  * for MS: the firmware hangs in its SPI wait and the watchdog must reset it), "unplug MS" (pty
  * closed, link removed, a new pty after MS), "stats" (the JSON status on stdout).
+ * --eeprom PATH: the board's 4 KiB EEPROM image, loaded at start when the file exists and saved
+ * every 100 ms and at exit (a board keeps its calibration across power cycles).
  * The JSON status (--status-file, rewritten every 100 ms and at exit) has the measurements. */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -36,6 +39,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <avr_eeprom.h>
+#include <avr_extint.h>
 #include <avr_ioport.h>
 #include <avr_spi.h>
 #include <avr_uart.h>
@@ -191,7 +196,7 @@ static avr_cycle_count_t spi_done(avr_t *a, avr_cycle_count_t when, void *param)
 {
     (void)when; (void)param;
     if (st.spi_stall_left)
-        return 0;                       /* a dead bus: SPIF never comes */
+        return when + 1000;             /* a dead bus: no SPIF until it comes back */
     avr_raise_irq(avr_io_getirq(a, AVR_IOCTL_SPI_GETIRQ(0), SPI_IRQ_INPUT), spi_reply);
     return 0;
 }
@@ -273,10 +278,7 @@ static void portb_pin(struct avr_irq_t *irq, uint32_t value, void *param)
 static int64_t enc_pos, enc_target;
 static void drive_pins(void)
 {
-    /* count 0 is A = B = high: simavr 1.6 starts polling a low INTn pin as level-triggered at
-     * reset (ISC = 00) and keeps polling (and interrupting) while it stays low whatever the
-     * firmware's ISC later says; a high pin ends the poll */
-    static const uint8_t gray[4] = {3, 2, 0, 1};
+    static const uint8_t gray[4] = {3, 2, 0, 1};      /* count 0: A = B = high */
     uint8_t s = gray[enc_pos & 3];
     /* the levels we drive override the pins' pull-ups when the firmware writes PORTx (simavr
      * re-applies the pull-up on every PORT/DDR write unless the pin is declared external) */
@@ -287,6 +289,23 @@ static void drive_pins(void)
     avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 4), s & 1);
     avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 5), (s >> 1) & 1);
     avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('A'), 0), st.estop ? 1 : 0);
+}
+
+/* After power-up and every reset: simavr 1.6 turns "strict" level triggering on for INT0-7 at
+ * reset, i.e. a low INTn pin seen while ISC = 00 (the reset value) starts a poll that runs every
+ * cycle and interrupts while the pin stays low, whatever ISC the firmware sets later (the
+ * simulation crawls); the harness turns it off (a level interrupt then behaves as a falling edge,
+ * which the firmware never uses). Its reset also zeroes the PIN registers: the lines we drive are
+ * written back. */
+static void after_reset(void)
+{
+    avr_extint_set_strict_lvl_trig(avr, 4, 0);
+    avr_extint_set_strict_lvl_trig(avr, 5, 0);
+    static const uint8_t gray[4] = {3, 2, 0, 1};
+    uint8_t s = gray[enc_pos & 3];
+    avr->data[0x2C] = (uint8_t)((avr->data[0x2C] & ~0x30) | (s << 4));     /* PINE */
+    avr->data[0x20] = (uint8_t)((avr->data[0x20] & ~0x01) | (st.estop ? 1 : 0));  /* PINA */
+    drive_pins();
 }
 
 static avr_cycle_count_t enc_step(avr_t *a, avr_cycle_count_t when, void *param)
@@ -390,6 +409,38 @@ static void status_json(FILE *f)
             (long long)enc_pos, pty_path);
 }
 
+#define EEPROM_SIZE 4096
+static void eeprom_io(const char *path, int save)
+{
+    static uint8_t image[EEPROM_SIZE], saved[EEPROM_SIZE];
+    if (!path)
+        return;
+    avr_eeprom_desc_t d = {.ee = image, .offset = 0, .size = EEPROM_SIZE};
+    if (!save) {
+        FILE *f = fopen(path, "rb");
+        if (!f)
+            return;
+        size_t n = fread(image, 1, EEPROM_SIZE, f);
+        fclose(f);
+        d.size = (uint32_t)n;
+        avr_ioctl(avr, AVR_IOCTL_EEPROM_SET, &d);
+        memcpy(saved, image, n);
+        return;
+    }
+    avr_ioctl(avr, AVR_IOCTL_EEPROM_GET, &d);
+    if (!memcmp(saved, image, EEPROM_SIZE))
+        return;
+    char tmp[512];
+    snprintf(tmp, sizeof tmp, "%s.tmp%d", path, (int)getpid());
+    FILE *f = fopen(tmp, "wb");
+    if (!f)
+        return;
+    fwrite(image, 1, EEPROM_SIZE, f);
+    fclose(f);
+    rename(tmp, path);
+    memcpy(saved, image, EEPROM_SIZE);
+}
+
 static void write_status(const char *path)
 {
     if (!path)
@@ -450,13 +501,14 @@ static void on_signal(int sig) { (void)sig; stop = 1; }
 
 int main(int argc, char **argv)
 {
-    const char *elf = NULL, *status_path = NULL;
+    const char *elf = NULL, *status_path = NULL, *eeprom_path = NULL;
     double duration = 0;
     int i = 1;
     for (; i < argc && strcmp(argv[i], "--"); i++) {
         if (!strcmp(argv[i], "--link") && i + 1 < argc) link_path = argv[++i];
         else if (!strcmp(argv[i], "--status-file") && i + 1 < argc) status_path = argv[++i];
         else if (!strcmp(argv[i], "--duration") && i + 1 < argc) duration = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--eeprom") && i + 1 < argc) eeprom_path = argv[++i];
         else if (argv[i][0] != '-' && !elf) elf = argv[i];
         else { fprintf(stderr, "pam-board-sim: unknown argument %s\n", argv[i]); return 2; }
     }
@@ -486,6 +538,7 @@ int main(int argc, char **argv)
     avr->log = LOG_ERROR;
     avr_load_firmware(avr, &fw);
     avr->frequency = F_CPU;
+    eeprom_io(eeprom_path, 0);
     avr->sleep = sleep_cb;
 
     uint32_t flags = 0;                 /* no console echo, no sleeping in status polls */
@@ -509,7 +562,7 @@ int main(int argc, char **argv)
         return 2;
     }
     enc_pos = enc_target;
-    drive_pins();
+    after_reset();
     pty_open();
 
     uint32_t *profile = getenv("PAM_BOARD_SIM_PROFILE") ? calloc(1 << 17, 4) : NULL;
@@ -557,7 +610,7 @@ int main(int argc, char **argv)
             if (avr->pc == 0 && avr->cycle != last_pc0) {   /* a reset (the watchdog's) */
                 last_pc0 = avr->cycle;
                 st.resets++;
-                drive_pins();           /* simavr's reset cleared the pin levels */
+                after_reset();
             }
             if (in_pos < in_len)
                 uart_feed();
@@ -586,6 +639,7 @@ int main(int argc, char **argv)
         if (st.ms >= next_status) {
             next_status = st.ms + 100;
             write_status(status_path);
+            eeprom_io(eeprom_path, 1);
         }
         if (duration > 0 && st.ms >= (uint64_t)(duration * 1000))
             break;
@@ -609,6 +663,7 @@ int main(int argc, char **argv)
             fclose(f);
     }
     write_status(status_path);
+    eeprom_io(eeprom_path, 1);
     printf("pam-board-sim: stopped after %llu ms: ", (unsigned long long)st.ms);
     status_json(stdout);
     fflush(stdout);

@@ -26,8 +26,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--x0', type=float, nargs=4, default=[0.0, 0.0, 450e3, 450e3])
     parser.add_argument('--noise-std', type=float, default=500.0, metavar='PA')
     parser.add_argument('--seed', type=int, default=0)
-    parser.add_argument('--locked-at', type=float, default=None, metavar='RAD',
-                        help='hold the joint at this angle (pressure tests)')
+    parser.add_argument('--initial-command', type=float, nargs=2, default=[0.0, 0.0],
+                        metavar=('U1', 'U2'),
+                        help="the valves' voltages before the board's first DAC word (V)")
+    parser.add_argument('--offset-volts', type=float, nargs=2, default=[0.0, 0.0],
+                        metavar=('P1', 'P2'),
+                        help="the P1 and P2 transducers' zero error (V), for the board's "
+                             'auto-zero')
     add_model_arguments(parser)
     return parser
 
@@ -44,7 +49,8 @@ def main(argv=None) -> int:
     model, scenario = build_model(args)
     sensor = PressureSensor(noise_std=max(args.noise_std, 0.0), bits=0, range_min=0.0,
                             range_max=2e6)
-    rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed, u0=(0.0, 0.0),
+    rig = SimulatedRig(model, args.x0, sensor=sensor, seed=args.seed,
+                       u0=tuple(args.initial_command),
                        effects=scenario.effects)
     supply = SupplySensor(rig, sensor, args.seed)
     out = sys.stdout.buffer
@@ -52,8 +58,8 @@ def main(argv=None) -> int:
 
     def sample() -> bytes:
         s = rig.sample()
-        volts = (cal.pressure_volts(0, float(s.p_measured[0])),
-                 cal.pressure_volts(1, float(s.p_measured[1])),
+        volts = (cal.pressure_volts(0, float(s.p_measured[0])) + args.offset_volts[0],
+                 cal.pressure_volts(1, float(s.p_measured[1])) + args.offset_volts[1],
                  cal.torque_zero_volts + float(s.torque) / cal.torque_nm_per_volt,
                  cal.pressure_volts(SUPPLY, supply.measure()))
         return SAMPLE.pack(*volts, cal.encoder_counts(float(s.x[0])))
