@@ -8,6 +8,11 @@
   (so a controller that missed it can answer), counted; a stamp older than
   the last one means time went backwards (a bag looping, a simulator restarted): the filter is
   reset to its initial state and covariance, then the sample is processed;
+* a sample counter that jumps by n > 1 (samples the rig missed, or lost on the way) makes the
+  filter coast through the n - 1 missing periods first (a prediction with the held command, no
+  update: PamUkf.coast), so its model stays on the plant's time instead of falling n - 1 steps
+  behind; up to MAX_COAST samples (a longer gap is a restart of the stream: one step, as
+  without counters), counted;
 * a supply pressure reading (Pa abs, stamp in ns; only with use_supply) is held and used as
   P_tank of the steps whose sample stamp is within SUPPLY_STALE of its stamp; a reading that is
   older (or newer by as much: time went backwards), missing or not finite gives the model's
@@ -30,6 +35,7 @@ from .pam_ukf import PamUkf, UkfOutput
 
 RATE_WINDOW = 1000          # samples over which the input rate and step times are measured
 SUPPLY_STALE = 0.1          # s, a supply reading further from the sample's stamp is not used
+MAX_COAST = 100             # missing samples the filter coasts through (0.1 s at 1 kHz)
 
 
 @dataclass
@@ -55,6 +61,8 @@ class EstimatorCore:
         self.initial_command = tuple(float(u) for u in initial_command)
         self.u_prev = np.array(self.initial_command)
         self.last_stamp_ns: int | None = None
+        self.last_sample: int | None = None   # the rig's sample counter of the last sample
+        self.coasted = 0              # missing periods the filter coasted through
         self.samples = 0
         self.duplicates = 0
         self.time_resets = 0
@@ -106,10 +114,13 @@ class EstimatorCore:
         """Restart the filter (from its configured initial state unless given)."""
         self.ukf.reset(x0, P0)
         self.last_stamp_ns = None
+        self.last_sample = None
         self.last_output = None
 
-    def on_pressures(self, p1: float, p2: float, stamp_ns: int) -> CoreEvent:
-        """One pressure sample: the filter step, or why there was none."""
+    def on_pressures(self, p1: float, p2: float, stamp_ns: int,
+                     sample: int | None = None) -> CoreEvent:
+        """One pressure sample (with the rig's sample counter if known): the filter step, or
+        why there was none."""
         now = time.monotonic()
         message = ''
         kind = 'estimate'
@@ -126,10 +137,18 @@ class EstimatorCore:
                 message = (f'time went backwards by {back:.3f} s (bag looping or rig restarted): '
                            'filter reset to its initial state')
         self._arrivals.append(now)
+        supply = self.supply_for(stamp_ns)
+        missing = (sample - self.last_sample - 1 if sample is not None and kind != 'reset'
+                   and self.last_sample is not None else 0)
         start = time.perf_counter()
-        output = self.ukf.step((p1, p2), self.u_prev, self.supply_for(stamp_ns))
+        if 0 < missing <= MAX_COAST:
+            for _ in range(missing):
+                self.ukf.coast(self.u_prev, supply)
+            self.coasted += missing
+        output = self.ukf.step((p1, p2), self.u_prev, supply)
         self._step_times.append(time.perf_counter() - start)
         self.last_stamp_ns = stamp_ns
+        self.last_sample = sample
         self.samples += 1
         self.last_output = output
         return CoreEvent(kind, output, message)

@@ -56,6 +56,7 @@ from .unscented import (
 
 N_STATE = 4
 KAPPA = 0.0
+_NO_MEASUREMENT = (math.nan, math.nan)   # Pa: a sample that never came (PamUkf.coast)
 LOCKED_VARIANCE = 1e-12      # rad^2 and (rad/s)^2 kept on psi, psi_dot of a locked joint
 
 
@@ -395,6 +396,14 @@ class PamUkf:
         return UkfOutput(x=self.x.copy(), P=self.P.copy(), force1=F1, force2=F2, torque=tau,
                          torque_variance=tau_var, subsystem=int(sigma), nis=nis,
                          update_skipped=not accepted)
+
+    def coast(self, u_prev, supply=None) -> None:
+        """One model step h without a measurement, for a sample that never came (the rig missed
+        it, or it was lost on the way): the prediction with u_prev (V) only; not counted as a
+        rejected sample."""
+        rejected = self.rejected_samples
+        self.step(_NO_MEASUREMENT, u_prev, supply)
+        self.rejected_samples = rejected
 
     def _step_with_effects(self, y, u_prev, supply) -> None:
         """ukf_step with the extensions and the measured supply: fills self._info."""

@@ -138,7 +138,8 @@ class UkfNode(LinkedNode):
 
     def _on_pressures(self, msg: Pressures) -> None:
         self.gaps.update(msg.sample)
-        event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns(msg.header.stamp))
+        event = self.core.on_pressures(msg.p1, msg.p2, stamp_ns(msg.header.stamp),
+                                        msg.sample or None)   # 0: no counter
         if event.output is None:
             return
         if self.core.supply_fallback:
@@ -210,6 +211,7 @@ class UkfNode(LinkedNode):
             'largest input gap (ms)': core.largest_input_gap() * 1e3,
             'samples estimated': core.samples,
             'duplicate samples (estimate repeated)': core.duplicates,
+            'missing samples coasted through': core.coasted,
             'resets on time going backwards': core.time_resets,
             'valve commands received': core.commands,
             'bad valve commands': core.bad_commands,

@@ -136,3 +136,34 @@ def test_core_sanitises_commands():
     assert not core.on_command(np.nan, 12.0)
     np.testing.assert_array_equal(core.u_prev, [0.0, 10.0])
     assert core.bad_commands == 1 and core.commands == 2
+
+
+def test_core_coasts_through_missing_samples_by_the_counter():
+    """Samples 301..340 never came (the rig missed them, or they were lost): with the rig's
+    counter the filter coasts through the 40 periods (prediction only, with the held command)
+    and stays on the plant's time; without a counter it falls 40 steps behind the moving
+    joint. A counter jump beyond MAX_COAST is not coasted (a restarted stream)."""
+    from pam_estimator.estimator_core import MAX_COAST
+    U = np.tile([7.0, 4.0], (700, 1))
+    run = simulate(PamModel(), U, X0)
+    gap = range(301, 341)
+    counted, blind = EstimatorCore(PamUkf(x0=X0)), EstimatorCore(PamUkf(x0=X0))
+    for core in (counted, blind):
+        core.on_command(*U[0])
+    for k in range(1, 400):
+        if k in gap:
+            continue
+        stamp = k * 1_000_000
+        a = counted.on_pressures(*run.p_measured[k], stamp, sample=k)
+        b = blind.on_pressures(*run.p_measured[k], stamp)
+        if k == gap.stop:
+            after = a.output, b.output
+    assert counted.coasted == len(gap) and blind.coasted == 0
+    assert counted.ukf.steps == 399 and blind.ukf.steps == 399 - len(gap)
+    assert counted.ukf.rejected_samples == 0
+    truth = run.x[gap.stop, 0]
+    coasting, behind = (abs(out.x[0] - truth) for out in after)
+    assert coasting < 0.2 * behind, (coasting, behind)
+    far = counted.ukf.steps
+    counted.on_pressures(*run.p_measured[400], 400_000_000, sample=400 + MAX_COAST + 1)
+    assert counted.ukf.steps == far + 1 and counted.coasted == len(gap)
