@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 
 from pam_estimator.evaluation import run_ukf
-from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, ukf_step
+from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, INFO_TORQUE, ukf_step
 from pam_model.effects import Effects
 from pam_model.metrics import metrics
 from pam_model.mismatch import MismatchScenario
@@ -113,7 +113,7 @@ def ukf_runs_kernel(p_measured, U, x0s, est_arrays, h, kappa_u, kappa_alpha, fri
             ukf_step(x, P, U[k - 1], p_measured[b, k], Q, R, h, p_array, kappa_u, kappa_alpha,
                      friction_law, force_model, locked, x0s[b, 0], 0.0, 1.0e3, 2.0e6, info)
             psi[b, k] = x[0]
-            tau[b, k] = info[6]
+            tau[b, k] = info[INFO_TORQUE]
     return psi, tau
 
 

@@ -91,9 +91,12 @@ def hold_locked(x, P, lock_angle):
     return x, P
 
 
-#: Layout of the `info` array ukf_step fills (one float each).
+#: Layout of the `info` array ukf_step fills (one float each), and each field's index (module
+#: constants: numba compiles them in as literals)
 INFO_FIELDS = ('nis', 'valid', 'accepted', 'repairs', 'force1', 'force2', 'torque',
                'torque_variance', 'subsystem', 'finite')
+(INFO_NIS, INFO_VALID, INFO_ACCEPTED, INFO_REPAIRS, INFO_FORCE1, INFO_FORCE2, INFO_TORQUE,
+ INFO_TORQUE_VARIANCE, INFO_SUBSYSTEM, INFO_FINITE) = range(len(INFO_FIELDS))
 
 
 @njit(cache=True)
@@ -141,10 +144,10 @@ def correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info)
             nis = 0.0
     if locked:
         x_post, P_post = hold_locked(x_post, P_post, lock_angle)
-    info[0] = nis
-    info[1] = valid
-    info[2] = accepted
-    info[3] = int(rep2)
+    info[INFO_NIS] = nis
+    info[INFO_VALID] = valid
+    info[INFO_ACCEPTED] = accepted
+    info[INFO_REPAIRS] = int(rep2)
     return x_post, P_post
 
 
@@ -153,7 +156,7 @@ def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model
                      F_h2, info):
     """Step 5 at the posterior, with the hysteresis forces F_h1, F_h2 (N; 0 in the paper's
     model) in eq. (6): forces, torque, its variance, sigma into info; x, P become the posterior
-    if it is finite (info[9]). With the bias states (7 entries) the torque gains b_tau."""
+    if it is finite (info[INFO_FINITE]). With the bias states (7 entries) the torque gains b_tau."""
     p = p_array[0]
     biased = x_post.shape[0] > N_STATE
     W = julier_weights(x_post.shape[0], KAPPA)
@@ -185,13 +188,13 @@ def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model
     if finite:
         x[:] = x_post
         P[:, :] = P_post
-    info[3] += int(rep3)
-    info[4] = F1
-    info[5] = F2
-    info[6] = tau
-    info[7] = tau_variance
-    info[8] = sigma
-    info[9] = finite
+    info[INFO_REPAIRS] += int(rep3)
+    info[INFO_FORCE1] = F1
+    info[INFO_FORCE2] = F2
+    info[INFO_TORQUE] = tau
+    info[INFO_TORQUE_VARIANCE] = tau_variance
+    info[INFO_SUBSYSTEM] = sigma
+    info[INFO_FINITE] = finite
 
 
 @njit(cache=True)
@@ -199,7 +202,7 @@ def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_l
              locked, lock_angle, nis_gate, y_min, y_max, info):
     """One predict + update of the paper's model, in place: x (4,) and P (4, 4) become the
     posterior and info (10,) receives INFO_FIELDS (nis is 0 when the measurement was not valid).
-    If the posterior were not finite, x and P are left unchanged and info[9] = 0. p_array:
+    If the posterior were not finite, x and P are left unchanged and info[INFO_FINITE] = 0. p_array:
     Parameters record array."""
     p = p_array[0]
     alpha1 = valve_opening(u_prev[0], kappa_u, kappa_alpha)
@@ -207,7 +210,7 @@ def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_l
     sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
     sigmas_f = propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked)
     x_post, P_post = correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info)
-    info[3] += int(rep1)
+    info[INFO_REPAIRS] += int(rep1)
     estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model, locked, 0.0,
                      0.0, info)
 
@@ -226,7 +229,7 @@ def predict_correct_with_effects(x, P, alpha1, alpha2, y, Q, R, h, p_array, fric
                                       force_model, locked, V_d, F_h1, F_h2)
     x_post, P_post = correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, -np.inf, np.inf,
                              info)
-    info[3] += int(rep1)
+    info[INFO_REPAIRS] += int(rep1)
     F1, F2 = muscle_forces(x_post[0], x_post[2], x_post[3], p_array[0], force_model)
     return x_post, P_post, F1, F2
 
@@ -431,5 +434,5 @@ class PamUkf:
             F_h = self._hysteresis.update((F1, F2), x_post[2:4])
         estimate_outputs(self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code,
                          m.force_code, m.locked, F_h[0], F_h[1], info)
-        if info[9]:
+        if info[INFO_FINITE]:
             self.F_h = F_h
