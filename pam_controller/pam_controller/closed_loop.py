@@ -29,6 +29,7 @@ from pam_model.effects import Effects, EffectsPlant
 from pam_model.model import PamModel
 from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.physics import joint_torque, muscle_forces, step_array
+from pam_model.rest import REST_STATE
 from pam_model.sensor import PressureSensor, adc_reading
 
 from .pi import ANTI_WINDUP, PiGains, pi_step
@@ -113,7 +114,7 @@ def simulate_closed_loop(plant: PamModel, estimator_model: PamModel, reference, 
                          sensor: PressureSensor = PressureSensor(), tuning: UkfTuning =
                          DEFAULT_TUNING, mode: str = 'angle', anti_windup: str = 'conditional',
                          tracking_time: float = 0.1, limits: PiGains = PiGains(0.0, 0.0),
-                         x0=(0.0, 0.0, 4.5e5, 4.5e5), seed: int = 0) -> list[ClosedLoopRun]:
+                         x0=REST_STATE, seed: int = 0) -> list[ClosedLoopRun]:
     """Closed-loop runs of every (kp, ki) in gain_candidates over reference (N,) (rad or N m).
 
     The plant and the estimator's model must agree on h, friction law, force model and joint
@@ -150,7 +151,7 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
                                       mode: str = 'angle', anti_windup: str = 'conditional',
                                       tracking_time: float = 0.1,
                                       limits: PiGains = PiGains(0.0, 0.0),
-                                      x0=(0.0, 0.0, 4.5e5, 4.5e5), seed: int = 0,
+                                      x0=REST_STATE, seed: int = 0,
                                       extensions: Effects = NO_EXTENSIONS) -> ClosedLoopRun:
     """One closed-loop run of the gains (kp, ki) on a plant with unmodelled effects (any, or
     none): simulate_closed_loop's loop, the same sensor noise draws and the same control_step,

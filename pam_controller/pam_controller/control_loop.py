@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from pam_model.rest import REST_COMMAND
+
 from .pi import PiController, PiGains, PiOutput, validate_gains
 
 ANGLE, TORQUE = 0, 1           # pam_interfaces/Reference constants
@@ -40,7 +42,7 @@ class ControlLoop:
     """Angle and torque PI loops; the feedback must match the reference's mode."""
 
     def __init__(self, angle_gains: PiGains, torque_gains: PiGains, anti_windup='conditional',
-                 tracking_time=0.1, dt_max=0.1, safe_command=(5.5, 5.5), mode=ANGLE,
+                 tracking_time=0.1, dt_max=0.1, safe_command=REST_COMMAND, mode=ANGLE,
                  reference: float | None = 0.0, enabled: bool = True):
         self.controllers = {ANGLE: PiController(angle_gains, anti_windup, tracking_time, dt_max),
                             TORQUE: PiController(torque_gains, anti_windup, tracking_time,

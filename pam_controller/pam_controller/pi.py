@@ -26,6 +26,8 @@ from typing import NamedTuple
 
 from numba import njit
 
+from pam_model.rest import BETA
+
 ANTI_WINDUP = ('conditional', 'back_calculation')
 ERROR_LIMIT = 1.0e6    # rad or N m: a larger error is taken as this (numerical bound only)
 TERM_LIMIT = 1.0e6     # V: bound of the proportional term, an integral increment, the integral
@@ -36,7 +38,7 @@ class PiGains(NamedTuple):
 
     kp: float              # V per rad (angle) or per N m (torque)
     ki: float              # V per rad s or per N m s
-    beta: float = 5.5      # V, bias of both valves
+    beta: float = BETA     # V, bias of both valves
     u_min: float = 0.0     # V
     u_max: float = 10.0    # V
 

@@ -68,6 +68,7 @@ from pam_interfaces.msg import (
     Reference,
     ValveCommand,
 )
+from pam_model.rest import BETA, REST_COMMAND
 
 from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
 from .pi import ANTI_WINDUP, PiGains, validate_gains
@@ -89,7 +90,7 @@ PARAMETERS = (
               range=GAIN_RANGE, **RUNTIME),
     ParamSpec('ki_torque', 8.0, 'double', 'V/(N m s)', 'Integral gain, torque mode.',
               range=GAIN_RANGE, **RUNTIME),
-    ParamSpec('beta', 5.5, 'double', 'V', 'Bias voltage of both valves.', range=(0.0, 10.0),
+    ParamSpec('beta', BETA, 'double', 'V', 'Bias voltage of both valves.', range=(0.0, 10.0),
               **RUNTIME),
     ParamSpec('u_min', 0.0, 'double', 'V', 'Lower output limit.', range=(0.0, 10.0), **RUNTIME),
     ParamSpec('u_max', 10.0, 'double', 'V', 'Upper output limit.', range=(0.0, 10.0), **RUNTIME),
@@ -107,7 +108,7 @@ PARAMETERS = (
     ParamSpec('feedback_timeout', 0.1, 'double', 's',
               'No feedback for this long (wall clock): the valves go to safe_command.',
               range=(0.001, 60.0)),
-    ParamSpec('safe_command', [5.5, 5.5], 'double[]', 'V',
+    ParamSpec('safe_command', list(REST_COMMAND), 'double[]', 'V',
               'Valve voltages when disabled or without feedback: by default both valves at beta '
               '(equal co-contraction, the joint rests near 0 deg).'),
     ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),

@@ -49,6 +49,7 @@ from pam_model.model import PamModel
 from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import joint_torque, muscle_forces
 from pam_model.profiles import step_reference_profile, validation_profile
+from pam_model.rest import REST_STATE
 from pam_model.simulate import simulate
 
 from .closed_loop import simulate_closed_loop, simulate_closed_loop_with_effects
@@ -56,7 +57,7 @@ from .pi import PiGains
 from .robustness_plants import Plant, sweep_plants
 from .step_metrics import ANGLE_SPAN
 
-X0 = (0.0, 0.0, 4.5e5, 4.5e5)       # rad, rad/s, Pa, Pa: every run's initial state
+X0 = REST_STATE                     # rad, rad/s, Pa, Pa: every run's initial state
 REFERENCE_SEED = 0                   # the demo's reference steps (reference_node's seed)
 CHUNK = 8                            # distinct plants whose runs are held (and batched) at once
 

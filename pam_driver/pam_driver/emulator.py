@@ -50,6 +50,7 @@ import tty
 from pam_common.timing import DeadlineSchedule
 from pam_driver import daq_protocol as proto
 from pam_driver.calibration import SUPPLY
+from pam_model.rest import REST_STATE
 
 MAX_PENDING = 65536   # bytes queued for a host that does not read: beyond, dropped
 HOST_SILENCE_STOP = 1.0  # s without host frames: stop streaming
@@ -69,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--calibration', default='default', metavar='FILE',
                         help='calibration YAML (default: the shipped driver_calibration.yaml)')
     parser.add_argument('--rate', type=int, default=1000, help='sample rate in Hz (default 1000)')
-    parser.add_argument('--x0', type=float, nargs=4, default=[0.0, 0.0, 450e3, 450e3],
+    parser.add_argument('--x0', type=float, nargs=4, default=list(REST_STATE),
                         metavar=('PSI', 'PSI_DOT', 'P1', 'P2'),
                         help='initial state in rad, rad/s, Pa, Pa (default: 0 0 450e3 450e3)')
     parser.add_argument('--initial-command', type=float, nargs=2, default=[0.0, 0.0],

@@ -31,6 +31,7 @@ from pam_common.node_params import (
 )
 from pam_common.realtime_knobs import REALTIME_PARAMS
 from pam_model.model_choices import ForceModel, FrictionLaw
+from pam_model.rest import REST_COMMAND, REST_STATE
 
 __all__ = [
     'PARAMETERS',
@@ -77,10 +78,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('joint_mode', 'free', 'string', '',
               "'free' joint, or 'locked' at its initial angle (torque experiments: the torque "
               'meter holds the joint).', choices=JOINT_MODES),
-    ParamSpec('initial_state', [0.0, 0.0, 450000.0, 450000.0], 'double[]',
+    ParamSpec('initial_state', list(REST_STATE), 'double[]',
               'rad, rad/s, Pa, Pa',
               'Initial true state [psi, psi_dot, P1, P2]; pressures are absolute.'),
-    ParamSpec('initial_command', [5.5, 5.5], 'double[]', 'V',
+    ParamSpec('initial_command', list(REST_COMMAND), 'double[]', 'V',
               'Valve voltages [u1, u2] held until the first valve_command arrives, in [0, 10].'),
     ParamSpec('pressure_noise_std', -1.0, 'double', 'Pa',
               'Standard deviation of the white noise on each pressure reading; negative: from '

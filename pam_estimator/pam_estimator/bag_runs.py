@@ -28,6 +28,7 @@ import numpy as np
 
 from pam_common import topics as stack_topics
 from pam_common.stamps import ns_pair, stamp_ns
+from pam_model.rest import REST_COMMAND
 from pam_model.simulate import SimulationResult
 
 from .estimator_core import SUPPLY_STALE
@@ -36,7 +37,7 @@ PRESSURES = stack_topics.absolute(stack_topics.PRESSURES)
 COMMAND = stack_topics.absolute(stack_topics.VALVE_COMMAND)
 MEASURED = stack_topics.absolute(stack_topics.JOINT_MEASURED)
 SUPPLY = stack_topics.absolute(stack_topics.SUPPLY_PRESSURE)
-INITIAL_COMMAND = (5.5, 5.5)
+INITIAL_COMMAND = REST_COMMAND
 LOCKED_TOLERANCE = math.radians(0.2)   # rad: a locked rig's encoder may jitter by a count or two
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pam_model.rest import REST_COMMAND
 from pam_model.valve_voltage import sanitise_command
 
 from .pam_ukf import PamUkf, UkfOutput
@@ -51,7 +52,7 @@ class CoreEvent:
 class EstimatorCore:
     """Feeds a PamUkf from timestamped messages and keeps the numbers the diagnostics report."""
 
-    def __init__(self, ukf: PamUkf, initial_command=(5.5, 5.5), use_supply: bool = False):
+    def __init__(self, ukf: PamUkf, initial_command=REST_COMMAND, use_supply: bool = False):
         self.ukf = ukf
         self.use_supply = use_supply
         self.supply: tuple[float, int] | None = None    # last reading (Pa abs, stamp ns)

@@ -43,6 +43,7 @@ from pam_model.physics import (
     subsystem_index,
     valve_opening,
 )
+from pam_model.rest import REST_STATE
 from pam_model.valve_voltage import sanitise_command
 
 from .bias_ukf import N_BIASED, BiasStates, torque_forces
@@ -293,7 +294,7 @@ class PamUkf:
 
     model: PamModel = field(default_factory=PamModel)
     tuning: UkfTuning = DEFAULT_TUNING
-    x0: tuple = (0.0, 0.0, 4.5e5, 4.5e5)
+    x0: tuple = REST_STATE
     nis_gate: float = 0.0
     y_range: tuple = (1.0e3, 2.0e6)
     extensions: Effects = NO_EXTENSIONS

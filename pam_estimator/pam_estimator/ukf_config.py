@@ -22,6 +22,7 @@ from pam_common.node_params import (
 from pam_common.realtime_knobs import REALTIME_PARAMS
 from pam_common.sample_gaps import WARN_RATIO_PARAM
 from pam_model.model_choices import ForceModel, FrictionLaw
+from pam_model.rest import REST_COMMAND, REST_STATE
 
 JOINT_MODES = ('free', 'locked')
 TUNING_PRESETS = ('default', 'paper')
@@ -61,9 +62,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Diagonal of R over [P1, P2]; empty: from the tuning preset.'),
     ParamSpec('initial_covariance', [], 'double[]', 'rad^2, (rad/s)^2, Pa^2, Pa^2',
               'Diagonal of P(0); empty: from the tuning preset.'),
-    ParamSpec('initial_state', [0.0, 0.0, 450000.0, 450000.0], 'double[]', 'rad, rad/s, Pa, Pa',
+    ParamSpec('initial_state', list(REST_STATE), 'double[]', 'rad, rad/s, Pa, Pa',
               'Initial estimate [psi, psi_dot, P1, P2] (also the state a reset returns to).'),
-    ParamSpec('initial_command', [5.5, 5.5], 'double[]', 'V',
+    ParamSpec('initial_command', list(REST_COMMAND), 'double[]', 'V',
               'Valve voltages assumed held until the first valve_command arrives.'),
     ParamSpec('nis_gate', 0.0, 'double', '',
               'Reject an update whose normalised innovation squared exceeds this (chi-square, '

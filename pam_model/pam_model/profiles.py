@@ -17,8 +17,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .model import T_S
+from .rest import BETA
 
-BETA = 5.5            # V, bias voltage of both valves (MODEL.md section 7)
 D_MAX = 1.85          # V, largest antagonistic offset of the validation profile
 ANGLE_STEP_MAX = math.radians(20.0)   # rad
 TORQUE_STEP_MAX = 2.0                  # N m

@@ -13,6 +13,7 @@ from pam_bag.bags import BagError
 from pam_model.cli.common import add_model_arguments, build_model, run_cli
 from pam_model.identification.campaign import CampaignPlan, simulate_campaign
 from pam_model.profiles import validation_profile
+from pam_model.rest import REST_STATE
 from pam_model.simulate import simulate
 
 from ..bag_runs import write_run_bag
@@ -67,7 +68,7 @@ def body(argv=None) -> int:
     runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects)
     if args.validation > 0.0:
         profile = validation_profile(args.seed + 1, args.validation, model.h)
-        x0 = np.array([0.0, 0.0, 4.5e5, 4.5e5])
+        x0 = np.array(REST_STATE)
         for mode, locked in (('free', False), ('locked', True)):
             runs.append((f'validation_{mode}', simulate(replace(model, locked=locked), profile.u,
                                                         x0, scenario.sensor, args.seed + 1,

@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from ..profiles import validation_profile
+from ..rest import REST_STATE
 from ..sensor import PressureSensor
 from ..simulate import simulate
 from .common import add_model_arguments, build_model, run_cli
@@ -31,7 +32,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help='profile duration in s (default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0,
                         help='seed of the profile and the sensor noise (default: %(default)s)')
-    parser.add_argument('--x0', type=float, nargs=4, default=[0.0, 0.0, 450e3, 450e3],
+    parser.add_argument('--x0', type=float, nargs=4, default=list(REST_STATE),
                         metavar=('PSI', 'PSI_DOT', 'P1', 'P2'),
                         help='initial state in rad, rad/s, Pa, Pa (default: 0 0 450e3 450e3)')
     parser.add_argument('--noise-std', type=float, metavar='PA',

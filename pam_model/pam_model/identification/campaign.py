@@ -19,10 +19,11 @@ from ..calibration_profiles import (
     locked_calibration_profile,
 )
 from ..model import PamModel
+from ..rest import REST_PRESSURE
 from ..simulate import simulate
 
 DEFAULT_LOCK_ANGLES = (-15.0, 0.0, 15.0)   # deg
-INITIAL_PRESSURE = 4.5e5                   # Pa abs, both muscles at the start of each run
+INITIAL_PRESSURE = REST_PRESSURE           # Pa abs, both muscles at the start of each run
 
 
 @dataclass(frozen=True)
