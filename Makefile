@@ -12,7 +12,7 @@ COLCON_ARGS ?=
 ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export ROS_AUTOMATIC_DISCOVERY_RANGE
 
-.PHONY: setup test test-venv demo clean
+.PHONY: setup test test-unit test-venv demo clean
 
 setup:
 	@bash "$(ROOT)/scripts/setup.sh"
@@ -30,6 +30,13 @@ test: setup
 test-venv: setup
 	cd "$(ROOT)" && AMENT_PREFIX_PATH="$(VENV)" PATH="$(VENV)/bin:$$PATH" \
 		"$(VENV)/bin/python" -m pytest $(PYTEST_ARGS)
+
+# The ROS-free tests only (marker `unit`, given by conftest.py from what a test module uses):
+# the cores, the physics, the filters, in one process, no DDS. `process` and `system` select the
+# others (`make test-venv PYTEST_ARGS="-m process"`).
+test-unit: setup
+	cd "$(ROOT)" && AMENT_PREFIX_PATH="$(VENV)" PATH="$(VENV)/bin:$$PATH" \
+		"$(VENV)/bin/python" -m pytest -m unit $(PYTEST_ARGS)
 
 # The main job: pam-demo (pam_bringup). `DURATION=30 make demo` records 30 s instead of 64.
 demo: setup

@@ -12,3 +12,44 @@ def pytest_generate_tests(metafunc):
     if rounds > 1:
         metafunc.fixturenames.append('soak_round')
         metafunc.parametrize('soak_round', range(1, rounds + 1))
+
+
+# ---------------------------------------------------------------------------- markers
+#: end-to-end tests: the whole stack, or a rig and the stack, as a user runs them (minutes each)
+SYSTEM_TESTS = {'test_demo.py', 'test_closed_loop_driver.py', 'test_bringup.py',
+                'test_two_hosts.py', 'test_firmware_driver.py', 'test_container.py',
+                'test_container_realtime.py', 'test_closed_loop_lockstep.py'}
+#: what makes a test module a process test: it starts processes or speaks ROS
+_PROCESS = ('node_process', 'probe', 'subprocess', 'rclpy', 'Popen', 'ros_domain',
+            'ros_context')
+_KINDS = ('unit', 'process', 'system')
+
+
+def _kind(path) -> str:
+    """'system' for the end-to-end modules, 'process' for a module that starts processes or
+    uses ROS (its source names one of _PROCESS), else 'unit' (ROS-free, in-process)."""
+    if path.name in SYSTEM_TESTS:
+        return 'system'
+    text = path.read_text(errors='replace')
+    return 'process' if any(word in text for word in _PROCESS) else 'unit'
+
+
+def pytest_configure(config):
+    for kind, what in (('unit', 'ROS-free, in one process (make test-unit)'),
+                       ('process', 'starts processes or speaks ROS/DDS'),
+                       ('system', 'the whole stack end to end, as a user runs it')):
+        config.addinivalue_line('markers', f'{kind}: {what}')
+
+
+def pytest_collection_modifyitems(config, items):
+    """Every test gets exactly one of the markers unit / process / system, from its module
+    (an explicit one on the test or its module wins): `-m unit` selects the fast tests."""
+    import pytest
+    kinds: dict = {}
+    for item in items:
+        if any(item.get_closest_marker(kind) for kind in _KINDS):
+            continue
+        path = item.path
+        if path not in kinds:
+            kinds[path] = _kind(path)
+        item.add_marker(getattr(pytest.mark, kinds[path]))
