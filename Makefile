@@ -21,8 +21,26 @@ setup:
 # checkout (build/colcon_ws), then colcon test with pytest, one package at a time, and the
 # colcon test-result summary (scripts/colcon_check.sh). Fails on any failure, or if a package
 # ran no test.
-test: setup
+test: setup firmware-test
 	cd "$(ROOT)" && bash "$(ROOT)/scripts/colcon_check.sh" $(COLCON_ARGS) -- $(PYTEST_ARGS)
+
+# The reference DAQ board (pam_driver/firmware): the core's unit tests with the host gcc, the
+# ATmega2560 ELF with avr-gcc, its tests on simavr (the board alone, then driver_node, the board's
+# faults and the closed loop against pam-emulator), then the figures measured there. Needs
+# gcc-avr binutils-avr avr-libc simavr libsimavr-dev libsimavrparts1 (.ci/run installs them).
+FIRMWARE_TESTS := pam_driver/test/test_firmware_board.py pam_driver/test/test_firmware_driver.py
+firmware-test: setup
+	@command -v avr-gcc >/dev/null && test -e /usr/include/simavr/sim_avr.h || { echo \
+		"firmware-test: needs the AVR toolchain and simavr: apt-get install -y" \
+		"--no-install-recommends gcc-avr binutils-avr avr-libc simavr libsimavr-dev" \
+		"libsimavrparts1"; exit 1; }
+	@start=$$(date +%s); \
+	$(MAKE) -s -C "$(ROOT)/pam_driver/firmware" all unit harness && \
+	rm -f "$(ROOT)/pam_driver/firmware/build/figures.json" && \
+	cd "$(ROOT)" && PAM_FIRMWARE_TEST=1 AMENT_PREFIX_PATH="$(VENV)" PATH="$(VENV)/bin:$$PATH" \
+		"$(VENV)/bin/python" -m pytest -q -p no:cacheprovider $(FIRMWARE_TESTS) && \
+	"$(VENV)/bin/python" "$(ROOT)/pam_driver/firmware/tools/figures.py" && \
+	echo "firmware-test: $$(( $$(date +%s) - start )) s"
 
 # The same tests in one pytest session against the venv's installed packages (testpaths = */test
 # in pytest.ini): no colcon build, for quick runs while developing. pytest's exit code 5 (no test

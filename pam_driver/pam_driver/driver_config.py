@@ -27,8 +27,9 @@ __all__ = ['PARAMETERS', 'ConfigError', 'build_config', 'usage_text', 'wants_hel
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('port', '/dev/ttyUSB0', 'string', '',
               'Serial device of the DAQ board (a pam-emulator --link path works too).'),
-    ParamSpec('baud', 921600, 'integer', 'baud',
-              'Baud rate (ignored by USB CDC and ptys; 1 kHz samples need >= 230400).',
+    ParamSpec('baud', 1000000, 'integer', 'baud',
+              'Baud rate (ignored by USB CDC and ptys; 1 kHz samples need >= 230400). 1 Mbaud: '
+              "exact on a 16 MHz AVR (the reference board's, pam_driver/firmware).",
               range=(9600, 12000000)),
     ParamSpec('calibration_file', 'default', 'string', '',
               "Calibration YAML (counts <-> SI units); 'default': the shipped "

@@ -157,14 +157,11 @@ __attribute__((noinline)) static void on_frame(board_t *b, const frame_t *fp)
     update_output(b);
 }
 
-void board_rx_byte(board_t *b, uint8_t byte)
+void board_rx_frame_end(board_t *b)
 {
     frame_t f;
-    if (!frame_decoder_feed(&b->rx, byte, &f))
-        return;
-    do
+    while (frame_decoder_next(&b->rx, &f))
         on_frame(b, &f);
-    while (frame_decoder_next(&b->rx, &f));
 }
 
 static void zero_step(board_t *b, const board_inputs_t *in)

@@ -58,6 +58,7 @@
 #define SPCR_ADDR 0x4C
 #define PORTB_ADDR 0x25
 #define TYPE_COMMAND 0x02
+#define MAX_LAG_NS 20000000ull           /* 20 ms */
 #define TICK_VECTOR 0x44                /* TIMER1_COMPA (vector 17): the 1 kHz tick's entry */
 
 static avr_t *avr;
@@ -124,7 +125,7 @@ static struct {
     uint64_t ticks, busy_worst, busy_total; /* cycles executing (not asleep) per tick period */
     uint64_t tx_bytes, rx_bytes, dropped_tx;
     uint64_t cmd_frames, cmd_delays, cmd_delay_worst, cmd_delay_sum;   /* cycles */
-    uint64_t dac_updates, late_ms, worst_lag_us, resets;
+    uint64_t dac_updates, late_ms, worst_lag_us, dropped_lag_ms, resets;
     double dac_volts[2];
     uint16_t dac_code[2];
     int estop, spi_stall_left;
@@ -159,7 +160,7 @@ static void uart_flush(void)
 }
 
 static uint64_t next_rx_cycle;
-static void uart_read(void)             /* every 100 simulated us */
+static void uart_read(void)             /* every 250 simulated us */
 {
     if (pty_master < 0 || in_pos != in_len)
         return;
@@ -376,12 +377,20 @@ static int plant_read(void)
     return 0;
 }
 
+/* Pipelined by one millisecond: the valve voltages of ms k go to the plant at the end of ms k and
+ * its sample comes back while the AVR simulates ms k + 1 (read at its end), so the two processes
+ * run side by side instead of waking each other twice a millisecond; the ADC reads the plant one
+ * millisecond later than pam-emulator's does (PLANT_LAG_MS, README.md). */
+static int plant_pending;
 static int plant_exchange(void)
 {
+    if (plant_pending && plant_read())
+        return -1;
     double u[2] = {st.dac_volts[0], st.dac_volts[1]};
     if (write(plant_in, u, sizeof u) != (ssize_t)sizeof u)
         return -1;
-    return plant_read();
+    plant_pending = 1;
+    return 0;
 }
 
 /* ---- status ------------------------------------------------------------------------------------ */
@@ -394,8 +403,9 @@ static void status_json(FILE *f)
             "\"dropped_tx\": %llu, \"command_frames\": %llu, \"command_delays\": %llu, "
             "\"command_delay_worst_us\": %.2f, \"command_delay_mean_us\": %.2f, "
             "\"dac_updates\": %llu, \"dac_volts\": [%.4f, %.4f], \"dac_codes\": [%u, %u], "
-            "\"late_ms\": %llu, \"worst_lag_us\": %llu, \"resets\": %llu, \"estop\": %d, "
-            "\"encoder\": %lld, \"device\": \"%s\"}\n",
+            "\"late_ms\": %llu, \"worst_lag_us\": %llu, \"dropped_lag_ms\": %llu, "
+            "\"resets\": %llu, \"estop\": %d, "
+            "\"encoder\": %lld, \"encoder_target\": %lld, \"device\": \"%s\"}\n",
             (unsigned long long)st.ms, (unsigned long long)st.busy_worst,
             st.ticks ? (double)st.busy_total / st.ticks : 0.0, CYCLES_PER_MS,
             (unsigned long long)st.tx_bytes, (unsigned long long)st.rx_bytes,
@@ -405,8 +415,9 @@ static void status_json(FILE *f)
             st.cmd_delays ? st.cmd_delay_sum / 16.0 / st.cmd_delays : 0.0,
             (unsigned long long)st.dac_updates, st.dac_volts[0], st.dac_volts[1],
             st.dac_code[0], st.dac_code[1], (unsigned long long)st.late_ms,
-            (unsigned long long)st.worst_lag_us, (unsigned long long)st.resets, st.estop,
-            (long long)enc_pos, pty_path);
+            (unsigned long long)st.worst_lag_us, (unsigned long long)st.dropped_lag_ms,
+            (unsigned long long)st.resets, st.estop,
+            (long long)enc_pos, (long long)enc_target, pty_path);
 }
 
 #define EEPROM_SIZE 4096
@@ -572,7 +583,7 @@ int main(int argc, char **argv)
      * periods busier than MIN, per address (a developer's tool: avr-nm maps them) */
     uint64_t profile_min = getenv("PAM_BOARD_SIM_PROFILE_MIN") ?
         (uint64_t)atoll(getenv("PAM_BOARD_SIM_PROFILE_MIN")) : 0;
-    uint64_t start = now_ns(), next_status = 0;
+    uint64_t start = now_ns(), next_status = 0;   /* wall time of simulated ms 0 */
     uint64_t vec_count[2] = {0, 0};
     uint64_t last_pc0 = 0, tick_c0 = 0, tick_slept0 = 0, tick_n = 0;
     int rc = 0;
@@ -615,7 +626,7 @@ int main(int argc, char **argv)
             if (in_pos < in_len)
                 uart_feed();
             if (avr->cycle >= next_slice) {
-                next_slice += CYCLES_PER_MS / 10;
+                next_slice += CYCLES_PER_MS / 4;       /* the pty every 250 us */
                 uart_read();
                 uart_flush();
             }
@@ -652,6 +663,12 @@ int main(int argc, char **argv)
             st.late_ms++;
             if ((now - due) / 1000 > st.worst_lag_us)
                 st.worst_lag_us = (now - due) / 1000;
+            /* a board never runs faster than its clock: beyond MAX_LAG behind (a starved
+             * process), the lag is dropped rather than caught up in a burst of samples */
+            if (now - due > MAX_LAG_NS) {
+                st.dropped_lag_ms += (now - due) / 1000000ull;
+                start += now - due;
+            }
         }
     }
     if (profile) {                      /* instructions executed per word address, for nm */

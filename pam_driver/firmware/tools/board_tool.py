@@ -120,8 +120,15 @@ class Board:
         return out
 
     def hello(self, major: int = proto.PROTOCOL_MAJOR, minor: int = 2) -> proto.DeviceInfo:
-        self.send(proto.HELLO, bytes((major, minor)))
-        return proto.parse_hello_ack(self.wait(proto.HELLO_ACK))
+        """HELLO until HELLO_ACK (a board still booting misses the first), its DeviceInfo."""
+        for attempt in range(4):
+            self.send(proto.HELLO, bytes((major, minor)))
+            try:
+                return proto.parse_hello_ack(self.wait(proto.HELLO_ACK, 0.5))
+            except TimeoutError:
+                if attempt == 3:
+                    raise
+        raise AssertionError('unreachable')
 
     def cal(self, frame_type: int, payload: bytes = b'', timeout: float = 1.0):
         """(result text, BoardCalibration) of a CAL_READ / CAL_WRITE / ZERO request."""

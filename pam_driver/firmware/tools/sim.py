@@ -27,7 +27,8 @@ TOOLCHAIN = ('apt-get install -y --no-install-recommends gcc-avr binutils-avr av
 
 def build(*targets: str) -> None:
     """make -C firmware TARGETS (quiet, incremental); RuntimeError naming the toolchain."""
-    done = subprocess.run(check=False, args=['make', '-s', '-C', str(FIRMWARE), *targets], capture_output=True,
+    done = subprocess.run(check=False, capture_output=True,
+                          args=['make', '-s', '-C', str(FIRMWARE), *targets],
                           text=True)
     if done.returncode:
         raise RuntimeError(f'building the firmware failed (toolchain: {TOOLCHAIN}):\n'
