@@ -156,6 +156,22 @@ static void test_session(void)
     /* another major version: answered, not streamed */
     hello(&b, 2);
     CHECK(last(T_HELLO_ACK)->payload[0] == 1 && !b.streaming);
+    /* garbage, a false SYNC and a corrupted COMMAND before a true one, through the board's
+     * inline fast path: only the true COMMAND is applied */
+    hello(&b, 1);
+    uint8_t out[FRAME_MAX], p[4];
+    put_u16(p, 3333);
+    put_u16(p + 2, 2222);
+    uint8_t n = frame_encode(out, T_COMMAND, 7, p, 4);
+    const uint8_t junk[3] = {0x00, 0xA5, 0x5A};
+    for (int i = 0; i < 3; i++) board_rx_byte(&b, junk[i]);
+    out[8] ^= 0xFF;
+    for (uint8_t i = 0; i < n; i++) board_rx_byte(&b, out[i]);
+    CHECK(b.dac[0] == 2048);                                         /* the new session: safe */
+    out[8] ^= 0xFF;
+    for (int k = 0; k < 6; k++)
+        for (uint8_t i = 0; i < n; i++) board_rx_byte(&b, out[i]);
+    CHECK(b.dac[0] == 3333 && b.dac[1] == 2222 && b.rx.crc_errors >= 1);
     /* unknown frame type: a protocol error, ignored */
     host(&b, 0x42, NULL, 0);
     CHECK(b.protocol_errors == 1);
