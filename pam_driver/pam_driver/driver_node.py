@@ -58,7 +58,7 @@ from rclpy.logging import LoggingSeverity
 from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
-from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
@@ -82,6 +82,7 @@ from pam_driver import daq_protocol as proto
 from pam_driver.calibration import SUPPLY
 from pam_driver.driver_config import PARAMETERS, build_config, usage_text
 from pam_driver.driver_core import Action, DriverCore, SafetyConfig
+from pam_driver.driver_health import DriverHealth, SafetyState
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
 NODE_NAME = 'driver_node'
@@ -137,7 +138,7 @@ class DriverNode(LinkedNode):
         self._log_nonfinite = self._logs.new()
         self._samples = 0
         self._protocol_errors = 0
-        self._reported = {}
+        self._health = DriverHealth()          # the diagnostics policy (driver_health)
         self._prev_angle = None
         self._supply = False                 # this session publishes supply_pressure
         self._pub_supply = None              # made at the first board that has the transducer
@@ -591,40 +592,12 @@ class DriverNode(LinkedNode):
                 rx, crc, trips, _ = self._device_heartbeat
                 values.update({'device rx frames': rx, 'device rx crc errors': crc,
                                'device watchdog trips': trips})
-            connected, armed, fault = core.connected, core.armed, core.sensor_fault
-            safe_reason = core.safe_reason
-        counters = ('crc errors', 'garbage bytes', 'lost frames', 'protocol errors',
-                    'commands clipped', 'non-finite commands', 'disconnects')
-        vents = values['board vents'] - self._reported.get('board vents', 0)
-        new = {k: values[k] - self._reported.get(k, 0) for k in counters}
-        self._reported = {k: values[k] for k in (*counters, 'board vents')}
-        problems = []
-        level = OK
-        if not connected and values['device refused'] != 'none':
-            level = ERROR
-            problems.append(f'device refused: {values["device refused"]}')
-        elif not connected:
-            level = ERROR
-            problems.append(f'device not connected ({self._last_error or "connecting"})')
-        if fault:
-            level = ERROR
-            problems.append(f'pressure sensor fault: {fault}')
-        if not armed:
-            level = max(level, WARN)
-            problems.append(f'safe output: {safe_reason}')
-        if vents:
-            # the valves were at 0 V for a while whatever the driver commanded: while armed,
-            # the control was not applied
-            level = max(level, ERROR if armed else WARN)
-            problems.append(f'board vented {vents} times in the last window '
-                            f"({values['board vents']} in all): its own watchdog got no host "
-                            'frame for its watchdog time')
-        recent = [f'{n} {k}' for k, n in new.items() if n]
-        if recent:
-            level = max(level, WARN)
-            problems.append('in the last window: ' + ', '.join(recent))
-        message = '; '.join(problems) or f'armed, {values["achieved rate (Hz)"]:.1f} Hz'
-        return level, message, values
+            state = SafetyState(connected=core.connected, armed=core.armed,
+                                sensor_fault=core.sensor_fault or '',
+                                safe_reason=core.safe_reason or '',
+                                last_error=self._last_error or '')
+        level, message = self._health.judge(values, state)
+        return bytes([level]), message, values
 
 
 #: The node as a component of a composed process (pam_container, pam-bringup --composed).
