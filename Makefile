@@ -28,7 +28,7 @@ test: setup firmware-test
 # ATmega2560 ELF with avr-gcc, its tests on simavr (the board alone, then driver_node, the board's
 # faults and the closed loop against pam-emulator), then the figures measured there. Needs
 # gcc-avr binutils-avr avr-libc simavr libsimavr-dev libsimavrparts1 (.ci/run installs them).
-FIRMWARE_TESTS := pam_driver/test/test_firmware_board.py pam_driver/test/test_firmware_driver.py
+FIRMWARE_TESTS := pam_driver/test/test_firmware_board.py pam_bringup/test/test_firmware_driver.py
 firmware-test: setup
 	@command -v avr-gcc >/dev/null && test -e /usr/include/simavr/sim_avr.h || { echo \
 		"firmware-test: needs the AVR toolchain and simavr: apt-get install -y" \

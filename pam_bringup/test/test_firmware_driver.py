@@ -10,6 +10,7 @@ pam_driver/firmware/build/figures.json for `make firmware-test` to print."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import signal
@@ -23,6 +24,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import is_status_of
+from pam_common.stamps import stamp_ns
 from pam_interfaces.msg import (
     JointEstimate,
     JointMeasurement,
@@ -31,10 +33,12 @@ from pam_interfaces.msg import (
     ValveCommand,
 )
 
-FIRMWARE = Path(__file__).resolve().parents[1] / 'firmware'
+# the board's tools are files of the repository (pam_driver/firmware/tools), not a package
+FIRMWARE = Path(__file__).resolve().parents[2] / 'pam_driver' / 'firmware'
 sys.path.insert(0, str(FIRMWARE))
-from tools import board_tool as bt  # noqa: E402
-from tools.sim import BUILD, CALIBRATION, SimBoard, build  # noqa: E402
+bt = importlib.import_module('tools.board_tool')
+_sim = importlib.import_module('tools.sim')
+BUILD, CALIBRATION, SimBoard, build = _sim.BUILD, _sim.CALIBRATION, _sim.SimBoard, _sim.build
 
 from pam_driver.calibration import load  # noqa: E402
 
@@ -134,14 +138,14 @@ def board_rig(node_process, probe, tmp_path):
         r.stop()
 
 
-def test_driver_streams_and_commands_through_the_board(board_rig, helpers):
+def test_driver_streams_and_commands_through_the_board(board_rig):
     r = board_rig(driver_params=('watchdog_timeout:=0.3',))
     values = r.wait_values(lambda v: v.get('connected') == 'true', 10.0, 'connected')
     assert values['device protocol'] == '1.2', values
     start = time.monotonic() + 0.2
     time.sleep(1.4)
     window = [m for t, m in r.pressures.items() if start <= t < start + 1.0]
-    stamps = [helpers.stamp_ns(m.header.stamp) * 1e-9 for m in window]
+    stamps = [stamp_ns(m.header.stamp) * 1e-9 for m in window]
     rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
     # every sample of the board's counter arrived; the rate is the simulated board's, which
     # falls below 1 kHz of wall time only when this machine cannot keep simavr in real time

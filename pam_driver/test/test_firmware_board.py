@@ -6,6 +6,7 @@ latched faults and their re-arm, the limits and the AVR watchdog. Run by `make f
 
 from __future__ import annotations
 
+import importlib
 import os
 import struct
 import sys
@@ -14,10 +15,12 @@ from pathlib import Path
 
 import pytest
 
+# the board's tools are files of the repository (pam_driver/firmware/tools), not a package
 FIRMWARE = Path(__file__).resolve().parents[1] / 'firmware'
 sys.path.insert(0, str(FIRMWARE))
-from tools import board_tool as bt  # noqa: E402
-from tools.sim import SimBoard, build  # noqa: E402
+bt = importlib.import_module('tools.board_tool')
+_sim = importlib.import_module('tools.sim')
+SimBoard, build = _sim.SimBoard, _sim.build
 
 from pam_driver import daq_protocol as proto  # noqa: E402
 from pam_driver.calibration import load  # noqa: E402

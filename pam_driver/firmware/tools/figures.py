@@ -1,6 +1,6 @@
 """Print the reference board's figures measured by `make firmware-test` (README.md, firmware):
 flash and RAM from the ELF, and from the closed-loop run on simavr (build/figures.json, written by
-pam_driver/test/test_firmware_driver.py): CPU cycles per 1 ms tick, UART use, the COMMAND -> DAC
+pam_bringup/test/test_firmware_driver.py): CPU cycles per 1 ms tick, UART use, the COMMAND -> DAC
 delay and the loop's steady-state error against pam-emulator's."""
 
 from __future__ import annotations
