@@ -112,6 +112,16 @@ def assert_no_debug_lines(process) -> None:
 
 
 # ---------------------------------------------------------------------------- processes
+def read_child_output(f) -> str:
+    """All a child process has written so far to `f`, the file its stdout or stderr goes to.
+    The child's descriptor shares this open file's offset: a seek here would move where the
+    child writes next, and a line it wrote meanwhile would overwrite the start of the file (a
+    test read sim_node's first INFO lines cut and overwritten so). pread reads at an offset
+    without moving it."""
+    fd = f.fileno()
+    return os.pread(fd, os.fstat(fd).st_size, 0).decode(errors='replace')
+
+
 class NodeProcess:
     """A node executable as a child process with its output captured to files; `prefix` (e.g.
     ['ip', 'netns', 'exec', NAME]) runs it through a command that execs it (same pid)."""
@@ -125,9 +135,7 @@ class NodeProcess:
                                      stderr=self._err, stdin=subprocess.DEVNULL)
 
     def _read(self, f) -> str:
-        f.flush()
-        f.seek(0)
-        return f.read().decode(errors='replace')
+        return read_child_output(f)
 
     @property
     def stderr(self) -> str:

@@ -58,9 +58,10 @@ class SimBoard:
 
     @property
     def output(self) -> str:
-        self._out.flush()
-        self._out.seek(0)
-        return self._out.read().decode(errors='replace')
+        # pread, not seek + read: the harness's stdout shares this file's offset, and a seek
+        # here would make its next line overwrite the start of the file
+        fd = self._out.fileno()
+        return os.pread(fd, os.fstat(fd).st_size, 0).decode(errors='replace')
 
     def alive(self) -> bool:
         return self.proc.poll() is None
