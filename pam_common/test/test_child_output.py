@@ -9,8 +9,8 @@ import tempfile
 from pam_common.testing import read_child_output
 
 LINES = 20000
-WRITER = ('import sys\nfor i in range(%d):\n    sys.stderr.write(f"line {i}\\n")\n'
-          '    sys.stderr.flush()\n' % LINES)
+WRITER = (f'import sys\nfor i in range({LINES}):\n'
+          '    sys.stderr.write(f"line {i}\\n")\n    sys.stderr.flush()\n')
 
 
 def test_reading_while_the_child_writes_loses_nothing():
