@@ -35,6 +35,15 @@ def _kind(path) -> str:
 
 
 def pytest_configure(config):
+    # A shell starts a background job with SIGINT and SIGQUIT ignored, and an ignored signal
+    # stays ignored across exec: every node the tests start would then ignore the Ctrl-C the
+    # tests send (seen: `make test &` from a script; nodes hung 30 s at start-up, stops took the
+    # SIGKILL timeout). Handled here instead of ignored, the children get the default again.
+    import signal
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGQUIT) == signal.SIG_IGN:
+        signal.signal(signal.SIGQUIT, signal.SIG_DFL)
     for kind, what in (('unit', 'ROS-free, in one process (make test-unit)'),
                        ('process', 'starts processes or speaks ROS/DDS'),
                        ('system', 'the whole stack end to end, as a user runs it')):
