@@ -14,6 +14,7 @@ import time
 from dataclasses import asdict, dataclass
 
 from .realtime import set_sched_fifo
+from .timing import DeadlineSchedule
 
 DEFAULT_RATE = 1000.0      # Hz, the rig's
 DEFAULT_DURATION = 3.0     # s
@@ -62,13 +63,14 @@ def measure_timer_floor(rate: float = DEFAULT_RATE, duration: float = DEFAULT_DU
             scheduling = f'SCHED_FIFO {priority}' if grant.granted else \
                 f'SCHED_OTHER: SCHED_FIFO {priority} refused'
         lateness = []
-        start = time.monotonic() + period
-        for k in range(count):
-            deadline = start + k * period
-            delay = deadline - time.monotonic()
+        schedule = DeadlineSchedule(period, time.monotonic() + period, max_catch_up=None)
+        for _ in range(count):
+            delay = schedule.deadline - time.monotonic()
             if delay > 0.0:
                 time.sleep(delay)
-            lateness.append(max(time.monotonic() - deadline, 0.0))
+            now = time.monotonic()
+            lateness.append(max(schedule.lateness(now), 0.0))
+            schedule.advance(now)
         lateness.sort()
         result['floor'] = TimerFloor(rate=rate, deadlines=count,
                                      late=sum(1 for x in lateness if x > period),
