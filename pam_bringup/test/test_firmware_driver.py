@@ -23,8 +23,8 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from std_srvs.srv import Trigger
 
-from pam_common.diagnostics import is_status_of
 from pam_common.stamps import stamp_ns
+from pam_common.testing import DriverRigProbe
 from pam_interfaces.msg import (
     JointEstimate,
     JointMeasurement,
@@ -62,7 +62,7 @@ def codes(*volts) -> list:
     return [CAL.dac_counts(v) for v in volts]
 
 
-class BoardRig:
+class BoardRig(DriverRigProbe):
     """pam-board-sim (firmware + plant) and driver_node on its pty, with the probe's topics."""
 
     def __init__(self, node_process, probe, tmp_path, plant_args=(), eeprom=None,
@@ -85,32 +85,6 @@ class BoardRig:
                                  'valve_command matched')
         else:
             self.driver.wait_for(lambda: bool(self.values()), STARTUP, 'driver diagnostics')
-
-    def values(self, after: float = 0.0) -> dict:
-        statuses = [s for r, a in self.diagnostics.items() if r >= after for s in a.status
-                    if is_status_of(s.name, '/pam/driver_node')]
-        return {kv.key: kv.value for kv in statuses[-1].values} if statuses else {}
-
-    def status(self, after: float = 0.0):
-        statuses = [s for r, a in self.diagnostics.items() if r >= after for s in a.status
-                    if is_status_of(s.name, '/pam/driver_node')]
-        return statuses[-1] if statuses else None
-
-    def wait_values(self, predicate, timeout: float, what: str) -> dict:
-        self.driver.wait_for(lambda: bool(self.values()) and predicate(self.values()), timeout,
-                             what)
-        return self.values()
-
-    def send(self, u1, u2, duration=0.0, period=0.01) -> None:
-        end = time.monotonic() + duration
-        while True:
-            msg = ValveCommand()
-            msg.header.stamp = self.probe.node.get_clock().now().to_msg()
-            msg.u1, msg.u2 = float(u1), float(u2)
-            self.commands.publish(msg)
-            if time.monotonic() >= end:
-                return
-            time.sleep(period)
 
     def arm(self) -> None:
         client = self.probe.client(Trigger, '/pam/driver_node/arm')

@@ -397,6 +397,44 @@ def diagnostic_statuses(collector: Collector, node: str = 'sim_node') -> list:
             if is_status_of(s.name, node)]
 
 
+class DriverRigProbe:
+    """What a driver_node test reads and sends through its probe (the rig behind the driver:
+    pam-emulator or the reference board on simavr). A subclass sets `probe`, `driver` (the
+    driver_node NodeProcess), `diagnostics` (a /diagnostics Collector) and `commands` (a
+    /pam/valve_command publisher)."""
+
+    NODE = '/pam/driver_node'
+
+    def status(self, after: float = 0.0):
+        """driver_node's latest status received after monotonic time `after` (or None)."""
+        from .diagnostics import is_status_of
+        statuses = [s for r, a in self.diagnostics.items() if r >= after for s in a.status
+                    if is_status_of(s.name, self.NODE)]
+        return statuses[-1] if statuses else None
+
+    def values(self, after: float = 0.0) -> dict:
+        s = self.status(after)
+        return {kv.key: kv.value for kv in s.values} if s else {}
+
+    def wait_values(self, predicate, timeout: float, what: str) -> dict:
+        self.driver.wait_for(lambda: bool(self.values()) and predicate(self.values()), timeout,
+                             what)
+        return self.values()
+
+    def send(self, u1, u2, duration: float = 0.0, period: float = 0.01) -> float:
+        """Publish the command (V) every `period` s for `duration` s (once if 0); the
+        monotonic time of the last one."""
+        end = time.monotonic() + duration
+        while True:
+            msg = self.commands.msg_type()
+            msg.header.stamp = self.probe.node.get_clock().now().to_msg()
+            msg.u1, msg.u2 = float(u1), float(u2)
+            self.commands.publish(msg)
+            if time.monotonic() >= end:
+                return time.monotonic()
+            time.sleep(period)
+
+
 def all_finite(values) -> bool:
     return all(math.isfinite(v) for v in values)
 

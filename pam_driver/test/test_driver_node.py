@@ -15,6 +15,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import is_status_of
+from pam_common.testing import DriverRigProbe
 from pam_driver import calibration, daq_protocol as proto
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
@@ -22,7 +23,7 @@ STARTUP = 45.0
 HOST_VERSION = f'{proto.PROTOCOL_MAJOR}.{proto.PROTOCOL_MINOR}'   # driver_node's, in its HELLO
 
 
-class Rig:
+class Rig(DriverRigProbe):
     """pam-emulator + driver_node and the probe's subscriptions."""
 
     def __init__(self, node_process, probe, helpers, tmp_path, emulator_args=(),
@@ -57,33 +58,6 @@ class Rig:
             and node.count_publishers('/pam/driver_node/applied_command') > 0,
             10.0, 'valve_command and applied_command matched')
         time.sleep(0.2)
-
-    def status(self, after: float = 0.0):
-        """The latest driver_node status received after monotonic time `after` (or None)."""
-        arrays = [m for r, m in self.diagnostics.items() if r >= after]
-        statuses = [s for a in arrays for s in a.status
-                    if is_status_of(s.name, '/pam/driver_node')]
-        return statuses[-1] if statuses else None
-
-    def values(self, after: float = 0.0) -> dict:
-        s = self.status(after)
-        return {kv.key: kv.value for kv in s.values} if s else {}
-
-    def wait_values(self, predicate, timeout: float, what: str) -> dict:
-        self.driver.wait_for(lambda: bool(self.values()) and predicate(self.values()), timeout,
-                             what)
-        return self.values()
-
-    def send(self, u1, u2, duration=0.0, period=0.01):
-        end = time.monotonic() + duration
-        while True:
-            msg = ValveCommand()
-            msg.header.stamp = self.probe.node.get_clock().now().to_msg()
-            msg.u1, msg.u2 = float(u1), float(u2)
-            self.commands.publish(msg)
-            if time.monotonic() >= end:
-                return time.monotonic()
-            time.sleep(period)
 
     def call(self, service: str) -> Trigger.Response:
         client = self.probe.client(Trigger, f'/pam/driver_node/{service}')
