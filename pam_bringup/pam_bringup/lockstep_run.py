@@ -24,7 +24,7 @@ from rclpy.context import Context
 from rclpy.task import Future
 
 from pam_common.diagnostics import is_status_of, status_values
-from pam_common.executors import make_executor
+from pam_common.executors import lockstep_publication, make_executor
 from pam_common.finite_guard import FiniteGuard
 from pam_common.qos import SAMPLE_QOS
 from pam_common.stamps import stamp_ns
@@ -134,6 +134,7 @@ def run_lockstep_steps(mode: str, levels, hold: float, domain_id: int, seed: int
     env = child_environment(domain_id)
     env['AMENT_PREFIX_PATH'] = env.get('AMENT_PREFIX_PATH') or sys.prefix
     env['RCUTILS_COLORIZED_OUTPUT'] = '0'
+    lockstep_publication(env)
     env.pop('ROS_LOCALHOST_ONLY', None)
     nodes = stack_nodes('sim', reference=False, controller=True)
     arguments = node_arguments(mode, float(levels[0]), 'locked' if torque else 'free', mismatch,

@@ -44,6 +44,7 @@ from pathlib import Path
 import pytest
 
 from pam_bringup.stack import node_argv
+from pam_common.executors import lockstep_publication
 from pam_common.testing import STARTUP_TIMEOUT, NodeProcess, child_env, installed_config
 from pam_common.topics import DEFAULT_NAMESPACE, JOINT_MEASURED, VALVE_COMMAND
 from two_hosts_support import ADDRESS, WATCH_TIMEOUT_CODE, TwoHosts, netns_unavailable, remove_stale
@@ -66,6 +67,10 @@ MEASURE_NICE = '-10'
 #: time (the stamps), so a few missing samples do not bias the figures; a clean-clone CI run once
 #: lost 346 of 17501 to the 100-deep queue it had then (now pam_common.qos.RECORD_QOS, 2000).
 MIN_RECORDED = 0.98
+#: steps/s: the slowest lockstep loop the test waits for (tracking_report's RECORD s are
+#: simulated time). A clean-clone CI run made 320 steps/s over the link with asynchronous
+#: publication; synchronous (lockstep_env) about twice that.
+MIN_STEP_RATE = 250.0
 SAMPLE_BYTES = 60          # a lower bound of one sample's RTPS message on the wire (bytes)
 #: Lockstep: the plant steps when the command of its last sample arrives (simulated time, from
 #: /clock for reference_node; pi_node's wall-clock feedback timeout out of the way, as in
@@ -81,8 +86,15 @@ ROW = re.compile(r'^\s*(?P<t>[\d.]+)\s+(?P<reference>-?[\d.]+)deg\s+(?P<steady>[
 
 def two_hosts_env(domain: int) -> dict:
     """The nodes' environment in the namespaces: discovery over the subnet, UDPv4 only."""
-    env = child_env(domain)
+    env = lockstep_env(domain)
     env.update(ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET', FASTDDS_BUILTIN_TRANSPORTS='UDPv4')
+    return env
+
+
+def lockstep_env(domain: int) -> dict:
+    """The nodes' environment on one host, with the lockstep loop's publication mode."""
+    env = child_env(domain)
+    lockstep_publication(env)
     return env
 
 
@@ -135,7 +147,7 @@ def closed_loop_figures(hosts: Hosts) -> tuple[list[dict], str]:
                          '-p', 'startup_timeout:=30.0', nice=True)
     hosts.start('b', 'reference_node', 'pam_controller', '-p', f'hold:={HOLD}',
                 '-p', f'duration:={PROFILE}', '-p', 'repeat:=true', *LOCKSTEP['reference_node'])
-    code = report.wait_exit(RECORD + STARTUP_TIMEOUT)
+    code = report.wait_exit(RECORD * RATE / MIN_STEP_RATE + STARTUP_TIMEOUT)
     out = report.stdout
     assert code == 0, f'tracking_report exit code {code}:\n{out}\n{report.stderr}'
     samples = int(re.search(r'(\d+) samples', out).group(1))
@@ -188,7 +200,7 @@ def test_closed_loop_across_two_hosts_matches_one_host(two_hosts, ros_domain, tm
 
     # one host: every node in B, the link down (nothing else on the domain can reach them)
     two_hosts.set_link(False)
-    one = Hosts(two_hosts, {'a': 'b', 'b': 'b'}, child_env(ros_domain), tmp_path, request)
+    one = Hosts(two_hosts, {'a': 'b', 'b': 'b'}, lockstep_env(ros_domain), tmp_path, request)
     try:
         alone, alone_out = closed_loop_figures(one)
     finally:

@@ -14,3 +14,14 @@ def test_asynchronous_unless_the_user_chose(monkeypatch):
     monkeypatch.setenv(variable, 'SYNCHRONOUS')
     assert executors.prefer_asynchronous_publication() == 'SYNCHRONOUS'
     assert os.environ[variable] == 'SYNCHRONOUS'
+
+
+def test_lockstep_runs_synchronous_unless_the_user_chose():
+    """A lockstep loop is latency-bound: its launchers give the children synchronous
+    publication, and keep a mode already in the environment."""
+    variable = executors.PUBLICATION_MODE_VARIABLE
+    env = {}
+    assert executors.lockstep_publication(env) == 'SYNCHRONOUS'
+    assert env == {variable: 'SYNCHRONOUS'}
+    env = {variable: 'ASYNCHRONOUS'}
+    assert executors.lockstep_publication(env) == 'ASYNCHRONOUS'

@@ -99,6 +99,7 @@ COMMAND_STEP_DEBUG (0.5 V) in u1 or u2 (a sanitised command as applied). A comma
 from __future__ import annotations
 
 import math
+import os
 import sys
 import threading
 import time
@@ -111,6 +112,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
@@ -233,6 +235,12 @@ class SimNode(LinkedNode):
         self._diagnostics.add_check(self._realtime.report)
         for line in self.config.summary:
             self.get_logger().info(line)
+        mode = os.environ.get(PUBLICATION_MODE_VARIABLE)
+        if self._lockstep and mode != LOCKSTEP_PUBLICATION_MODE:
+            self.get_logger().info(
+                f'lockstep with {PUBLICATION_MODE_VARIABLE}={mode}: each step waits for a round '
+                f'trip of the loop, about twice as fast with {PUBLICATION_MODE_VARIABLE}='
+                f'{LOCKSTEP_PUBLICATION_MODE} in every node of the loop')
         self.get_logger().info(
             f'topics: publishing {self._pub_pressures.topic_name}, '
             f'{self._pub_joint.topic_name}, '

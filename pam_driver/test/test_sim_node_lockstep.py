@@ -64,7 +64,10 @@ def run_lockstep(sim_node, probe, helpers, seed: int, noise: float = 2000.0,
 
 
 def test_lockstep_is_deterministic(sim_node, probe, helpers):
-    first, _ = run_lockstep(sim_node, probe, helpers, seed=7, namespace='run1')
+    first, sim = run_lockstep(sim_node, probe, helpers, seed=7, namespace='run1')
+    # started with our nodes' asynchronous default, it says how to step faster
+    assert ('lockstep with RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS' in sim.stderr
+            and 'RMW_FASTRTPS_PUBLICATION_MODE=SYNCHRONOUS in every node' in sim.stderr), sim.stderr
     second, _ = run_lockstep(sim_node, probe, helpers, seed=7, namespace='run2')
     other, _ = run_lockstep(sim_node, probe, helpers, seed=8, namespace='run3')
 
