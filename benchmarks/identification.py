@@ -80,11 +80,11 @@ def main():
         for name in args.scenarios.split(','):
             out = work / name
             t0 = time.perf_counter()
-            run([tool('pam-calibration-bags'), out / 'bags', '--mismatch', name, '--seed',
+            run([tool('pam-calibration-bags'), out / 'bags', '--scenario', name, '--seed',
                  args.seed, '--validation', 130])
             calibration = [*sorted((out / 'bags').glob('locked_*')), out / 'bags' / 'free']
             run([tool('pam-identify'), *calibration, '-o', out / 'identified',
-                 '--truth-mismatch', name])
+                 '--truth-scenario', name])
             elapsed = time.perf_counter() - t0
             run([tool('pam-identify'), *calibration, '-o', out / 'paper', '--no-extensions',
                  '--partial'])
@@ -129,7 +129,7 @@ def main():
                 ok = ok and meets
                 rows.append((name, kind, results['nominal'], after, meets, targets[kind]))
                 late_rows.append((name, kind, results['nominal late'], results['identified late']))
-                print(f'  {kind}: pam-evaluate --params {out}/identified/params.yaml --kappa '
+                print(f'  {kind}: pam-evaluate --params {out}/identified/params.yaml --valve-map '
                       f'{out}/identified/kappa.csv --extensions {out}/identified/extensions.yaml '
                       f'{bag}')
     finally:

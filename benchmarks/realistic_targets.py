@@ -66,10 +66,10 @@ def run(cmd, log: Path):
 
 def identified_model(out: Path, scenario: str, campaign_seed: int):
     bags, ident = out / 'bags', out / 'identified'
-    run([tool('pam-calibration-bags'), bags, '--mismatch', scenario, '--seed', campaign_seed],
+    run([tool('pam-calibration-bags'), bags, '--scenario', scenario, '--seed', campaign_seed],
         out / 'calibration.log')
     run([tool('pam-identify'), *sorted(bags.glob('locked_*')), bags / 'free', '-o', ident,
-         '--partial', '--truth-mismatch', scenario], out / 'identify.log')
+         '--partial', '--truth-scenario', scenario], out / 'identify.log')
     report = (ident / 'report.txt').read_text()
     kept = [line for line in report.splitlines() if line.startswith('extensions kept')]
     print('  ' + (kept[0] if kept else 'extensions: none kept'), flush=True)

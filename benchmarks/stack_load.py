@@ -118,7 +118,7 @@ def commands(mode: str, rig: str, spaces: list[str], params: Path,
     mode = mode.removesuffix('+rt')
     links = ['--links'] if mode == 'linked' else []
     mode = 'composed' if mode == 'linked' else mode
-    plant = ['--mismatch', scenario] if scenario else []
+    plant = ['--scenario', scenario] if scenario else []
     boards = [(f'{ns} pam-emulator', [exe('pam-emulator', 'pam_driver'), '--link', ports[ns],
                                       '--initial-command', '5.5', '5.5', *plant])
               for ns in spaces if rig == 'driver']

@@ -8,7 +8,7 @@
 #
 # Rigs:
 #   --rig sim     (default) sim_node, realtime 1 kHz, plant = nominal + mismatch scenario
-#                 (--mismatch, default mild, with its pressure sensor model); a locked run starts
+#                 (--scenario, default mild, with its pressure sensor model); a locked run starts
 #                 sim_node with joint_mode:=locked and initial_state:=[angle, 0, 450 kPa, 450 kPa]
 #                 (the locked simulator holds its initial angle). No pauses.
 #   --rig driver  driver_node on the real rig (DAQ board with encoder and torque meter fitted).
@@ -33,8 +33,8 @@
 #                          nodes of the valve-map table); a locked run lasts
 #                          len(voltages) x (hold + pair_hold) s: 208 s by default
 #   --free-duration S      free run (PAM_CAL_FREE_DURATION, default 60; >= 18; 0: none)
-#   --mismatch NAME|FILE   sim only: plant mismatch scenario (PAM_CAL_MISMATCH, default mild;
-#                          '' or none: the nominal plant)
+#   --scenario NAME|FILE   sim only: the plant's scenario (PAM_CAL_MISMATCH, default mild;
+#                          '' or none: the nominal plant; --mismatch: its former name)
 #   --seed N               profile seed (PAM_CAL_SEED, default 0)
 #   --port DEV             driver only: serial port of the DAQ board (PAM_CAL_PORT, default
 #                          /dev/ttyUSB0)
@@ -72,7 +72,7 @@ while [ $# -gt 0 ]; do
     --pair-hold) PAIR_HOLD="${2:?$1 needs a value}"; shift ;;
     --voltages) VOLTAGES="${2:?$1 needs a value}"; shift ;;
     --free-duration) FREE_DURATION="${2:?$1 needs a value}"; shift ;;
-    --mismatch) MISMATCH="${2?$1 needs a value}"; shift ;;
+    --scenario|--mismatch) MISMATCH="${2?$1 needs a value}"; shift ;;
     --seed) SEED="${2:?$1 needs a value}"; shift ;;
     --port) PORT="${2:?$1 needs a value}"; shift ;;
     --driver-params) DRIVER_PARAMS="${2:?$1 needs a value}"; shift ;;
@@ -265,5 +265,5 @@ extra=""
 if [ "$HOLD" = 0.0 ] || [ ${#ANGLE_LIST[@]} -lt 2 ] || [ "$FREE_RUN" = 0 ]; then
   extra=" --partial"
 fi
-[ "$RIG" = sim ] && [ -n "$MISMATCH" ] && extra="$extra --truth-mismatch $MISMATCH"
+[ "$RIG" = sim ] && [ -n "$MISMATCH" ] && extra="$extra --truth-scenario $MISMATCH"
 echo "  pam-identify ${runs[*]} -o $OUT/identified$extra"

@@ -219,14 +219,14 @@ def main(argv=None) -> int:
           f"ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}; logs in {paths.logs}/", flush=True)
     code = steps.run(
         f"1/4 calibration campaign on the simulated '{args.scenario}' rig (pam-calibration-bags)",
-        [exe['pam-calibration-bags'], str(paths.calibration), '--mismatch', args.scenario,
+        [exe['pam-calibration-bags'], str(paths.calibration), '--scenario', args.scenario,
          '--seed', str(args.seed), *CAMPAIGNS[args.campaign]], paths.logs / 'calibration.log')
     if code:
         return code
     bags = sorted(str(p) for p in paths.calibration.iterdir() if p.is_dir())
     code = steps.run('2/4 identification (pam-identify --partial)',
                      [exe['pam-identify'], *bags, '-o', str(paths.identified), '--partial',
-                      '--truth-mismatch', args.scenario], paths.logs / 'identify.log')
+                      '--truth-scenario', args.scenario], paths.logs / 'identify.log')
     if code:
         return code
     identification = identification_summary(paths.identified)

@@ -135,7 +135,7 @@ def loop_settings(base: dict) -> dict:
     pi, sim, ref = (_section(base, n) for n in ('pi_node', 'sim_node', 'reference_node'))
     keys = ('kp_angle', 'ki_angle', 'beta', 'u_min', 'u_max', 'anti_windup', 'tracking_time')
     if any(k not in pi for k in keys):
-        from pam_controller.pi_node import PARAMETERS  # its table: the defaults
+        from pam_controller.pi_config import PARAMETERS  # its table: the defaults
         pi = {**{p.name: p.default for p in PARAMETERS if p.name in keys}, **pi}
     x0 = sim.get('initial_state')
     hold = ref.get('hold')

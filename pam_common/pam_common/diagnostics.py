@@ -28,15 +28,11 @@ from collections.abc import Callable, Mapping
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from .levels import ERROR, LEVEL_NAMES, OK, STALE, WARN  # noqa: F401 - the levels of this API
 from .links import process_links
 from .topics import DIAGNOSTICS
 
-OK = DiagnosticStatus.OK
-WARN = DiagnosticStatus.WARN
-ERROR = DiagnosticStatus.ERROR
-STALE = DiagnosticStatus.STALE
-
-LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
+# the levels are pam_common.levels' (ROS-free, the same bytes as DiagnosticStatus's)
 _LEVELS_BY_NAME = {name: level for level, name in LEVEL_NAMES.items()}
 _LEVELS_BY_NAME['WARNING'] = WARN
 

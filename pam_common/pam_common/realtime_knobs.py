@@ -131,8 +131,11 @@ class RealtimeKnobs:
         diagnostics.add_check(knobs.report)
     """
 
-    def __init__(self, logger, values: dict):
-        self.request = RealtimeRequest.from_values(check_realtime(values))
+    def __init__(self, logger, values: dict | RealtimeRequest):
+        """`values`: the node's parameter values (checked here: ConfigError, check_realtime), or
+        the RealtimeRequest of a node's frozen config."""
+        self.request = (values if isinstance(values, RealtimeRequest)
+                        else RealtimeRequest.from_values(check_realtime(values)))
         self._logger = logger
         self._threads: dict[str, int] = {}         # name -> tid of the threads it applied to
         self._refused: list[str] = []              # short texts of the knobs refused

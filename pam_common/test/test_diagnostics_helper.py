@@ -165,3 +165,13 @@ def test_checks_are_merged_into_the_status():
     assert (status.level, status.message) == (WARN, 'running; 3 values substituted')
     level[0] = ERROR
     assert pub.build().level == ERROR
+
+
+def test_the_ros_free_levels_are_diagnostic_msgs_levels():
+    """pam_common.levels (what the ROS-free cores decide) are DiagnosticStatus's bytes."""
+    from pam_common import levels
+    assert (levels.OK, levels.WARN, levels.ERROR, levels.STALE) == (
+        DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR,
+        DiagnosticStatus.STALE)
+    assert (OK, WARN, ERROR) == (levels.OK, levels.WARN, levels.ERROR)
+    assert max(levels.OK, levels.WARN, levels.ERROR) == levels.ERROR

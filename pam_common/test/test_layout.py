@@ -351,3 +351,87 @@ def test_nothing_outside_pam_common_calls_the_pieces_itself():
             if calls:
                 found[str(f.relative_to(ROOT))] = sorted(calls)
     assert not found
+
+
+# ---------------------------------------------------------------------------- configs and cores
+#: The 1 kHz nodes' shape: a frozen config dataclass built once from the parameter table (its
+#: module and class) and a core that holds the decisions (its module), both without ROS, so
+#: they are tested by calling them (no spinning). driver_node's is driver_core.SafetyConfig.
+CONFIG_AND_CORE = {
+    'sim_node': ('pam_driver/pam_driver/sim_config.py', 'SimConfig',
+                 'pam_driver/pam_driver/sim_core.py'),
+    'ukf_node': ('pam_estimator/pam_estimator/ukf_config.py', 'UkfConfig',
+                 'pam_estimator/pam_estimator/estimator_core.py'),
+    'pi_node': ('pam_controller/pam_controller/pi_config.py', 'PiConfig',
+                'pam_controller/pam_controller/control_loop.py'),
+    'driver_node': ('pam_driver/pam_driver/driver_core.py', 'SafetyConfig',
+                    'pam_driver/pam_driver/driver_core.py'),
+}
+#: pam_common's modules a ROS-free config or core may import (they import no ROS themselves)
+ROS_FREE_COMMON = {'pam_common.node_params', 'pam_common.realtime_knobs', 'pam_common.realtime',
+                   'pam_common.levels',
+                   'pam_common.joint_states', 'pam_common.joint_description',
+                   'pam_common.sample_gaps', 'pam_common.latency', 'pam_common.run_health',
+                   'pam_common.timing', 'pam_common'}
+
+
+#: ROS as a runtime: ament_index_python (a file lookup in the install's index, used lazily for
+#: the URDF's joint name: pam_common.joint_description) runs without it
+ROS_RUNTIME = ROS_MODULES - {'ament_index_python'}
+
+
+def ros_imports(tree: ast.AST, package: str) -> list[str]:
+    """The ROS modules (ROS_RUNTIME), and the pam_common modules outside ROS_FREE_COMMON, a
+    tree imports."""
+    found = set()
+    for name in imported_names(tree, package):
+        first = name.split('.')[0]
+        if first in ROS_RUNTIME:
+            found.add(first)
+        elif first == 'pam_common' and '.'.join(name.split('.')[:2]) not in ROS_FREE_COMMON:
+            found.add('.'.join(name.split('.')[:2]))
+    return sorted(found)
+
+
+def frozen_dataclasses(tree: ast.AST) -> set[str]:
+    """The classes decorated @dataclass(frozen=True)."""
+    return {node.name for node in ast.walk(tree) if isinstance(node, ast.ClassDef) and any(
+        isinstance(d, ast.Call) and getattr(d.func, 'id', None) == 'dataclass'
+        and any(k.arg == 'frozen' and getattr(k.value, 'value', False) for k in d.keywords)
+        for d in node.decorator_list)}
+
+
+def test_the_config_and_core_scanners_fail():
+    bad = ast.parse('import rclpy\nfrom pam_common.diagnostics import OK\n'
+                    'from dataclasses import dataclass\n@dataclass\nclass C:\n    x: int\n')
+    assert ros_imports(bad, 'pam_driver') == ['pam_common.diagnostics', 'rclpy']
+    assert frozen_dataclasses(bad) == set()
+    good = ast.parse('from pam_common.levels import OK\nfrom dataclasses import dataclass\n'
+                     '@dataclass(frozen=True)\nclass C:\n    x: int\n')
+    assert ros_imports(good, 'pam_driver') == [] and frozen_dataclasses(good) == {'C'}
+
+
+def import_time(tree: ast.Module) -> ast.Module:
+    """What runs when the module is imported: its statements without the functions' bodies."""
+    class Strip(ast.NodeTransformer):
+        def visit_FunctionDef(self, node):
+            return None
+        visit_AsyncFunctionDef = visit_FunctionDef
+    return Strip().visit(tree)
+
+
+def test_the_ros_free_common_modules_import_no_ros():
+    """Importing them loads no ROS (some of their functions, which only nodes call, do)."""
+    assert ros_imports(import_time(ast.parse('def f():\n    import rclpy\n')), 'x') == []
+    for name in sorted(ROS_FREE_COMMON - {'pam_common'}):
+        path = ROOT / 'pam_common' / 'pam_common' / f"{name.split('.')[1]}.py"
+        assert ros_imports(import_time(parse(path)), 'pam_common') == [], name
+
+
+@pytest.mark.parametrize('node', sorted(CONFIG_AND_CORE))
+def test_every_1khz_node_has_a_frozen_config_and_a_ros_free_core(node):
+    config_file, config_class, core_file = (ROOT / p if p.endswith('.py') else p
+                                            for p in CONFIG_AND_CORE[node])
+    assert config_class in frozen_dataclasses(parse(config_file))
+    for path in {config_file, core_file}:
+        assert ros_imports(parse(path), module_package(path)) == [], path

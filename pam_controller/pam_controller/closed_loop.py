@@ -25,6 +25,7 @@ from pam_estimator.pam_ukf import (
     UkfTuning,
     ukf_step,
 )
+from pam_estimator.valid_readings import NIS_GATE_OFF, PRESSURE_MAX, PRESSURE_MIN
 from pam_model.effects import Effects, EffectsPlant
 from pam_model.model import PamModel
 from pam_model.model_extensions import NO_EXTENSIONS
@@ -44,7 +45,7 @@ def control_step(x_hat, P, u, y, Q, R, h, est_array, kappa_u, kappa_alpha, frict
     reading y (Pa), the PI acts on reference - estimate (angle rad, or torque N m in torque_mode)
     and writes u(k) (V) into u. Returns (feedback, the PI's new integral term)."""
     ukf_step(x_hat, P, u, y, Q, R, h, est_array, kappa_u, kappa_alpha, friction_law,
-             force_model, locked, lock_angle, 0.0, 1.0e3, 2.0e6, info)
+             force_model, locked, lock_angle, NIS_GATE_OFF, PRESSURE_MIN, PRESSURE_MAX, info)
     feedback = info[INFO_TORQUE] if torque_mode else x_hat[0]
     u[0], u[1], _, i_term, _ = pi_step(reference - feedback, h, i_term, kp, ki, beta, u_min,
                                        u_max, anti_windup, tracking_time, 2.0 * h)

@@ -39,18 +39,11 @@ from std_srvs.srv import SetBool
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.links import LinkedNode
-from pam_common.node_params import (
-    HARDWARE_ID_PARAM,
-    ConfigError,
-    ParamSpec,
-    check_all,
-    check_command,
-    usage_text,
-)
+from pam_common.node_params import ConfigError, usage_text
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
-from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeKnobs
-from pam_common.sample_gaps import WARN_RATIO_PARAM, SampleGaps
+from pam_common.realtime_knobs import RealtimeKnobs
+from pam_common.sample_gaps import SampleGaps
 from pam_common.stamps import stamp_ns
 from pam_common.throttled_log import ThrottledLogs
 from pam_common.topics import (
@@ -68,87 +61,9 @@ from pam_interfaces.msg import (
     Reference,
     ValveCommand,
 )
-from pam_model.rest import BETA, REST_COMMAND
 
-from .control_loop import ANGLE, MODE_NAMES, TORQUE, ControlLoop
-from .pi import ANTI_WINDUP, PiGains, validate_gains
-
-NODE_NAME = 'pi_node'
-GAIN_RANGE = (0.0, 1.0e4)
-RUNTIME = dict(read_only=False)
-
-PARAMETERS = (
-    ParamSpec('mode', 'angle', 'string', '',
-              'Initial mode until a reference says otherwise.', choices=('angle', 'torque')),
-    ParamSpec('initial_reference', 0.0, 'double', 'rad or N m',
-              'Reference used until the first reference message.', range=(-10.0, 10.0)),
-    ParamSpec('kp_angle', 40.0, 'double', 'V/rad', 'Proportional gain, angle mode.',
-              range=GAIN_RANGE, **RUNTIME),
-    ParamSpec('ki_angle', 50.0, 'double', 'V/(rad s)', 'Integral gain, angle mode.',
-              range=GAIN_RANGE, **RUNTIME),
-    ParamSpec('kp_torque', 6.0, 'double', 'V/(N m)', 'Proportional gain, torque mode.',
-              range=GAIN_RANGE, **RUNTIME),
-    ParamSpec('ki_torque', 8.0, 'double', 'V/(N m s)', 'Integral gain, torque mode.',
-              range=GAIN_RANGE, **RUNTIME),
-    ParamSpec('beta', BETA, 'double', 'V', 'Bias voltage of both valves.', range=(0.0, 10.0),
-              **RUNTIME),
-    ParamSpec('u_min', 0.0, 'double', 'V', 'Lower output limit.', range=(0.0, 10.0), **RUNTIME),
-    ParamSpec('u_max', 10.0, 'double', 'V', 'Upper output limit.', range=(0.0, 10.0), **RUNTIME),
-    ParamSpec('anti_windup', 'conditional', 'string', '',
-              "'conditional' (freeze the integral while saturated further) or 'back_calculation'.",
-              choices=ANTI_WINDUP, **RUNTIME),
-    ParamSpec('tracking_time', 0.1, 'double', 's', 'Back-calculation time constant.',
-              range=(1e-4, 100.0), **RUNTIME),
-    ParamSpec('dt_max', 0.1, 'double', 's',
-              'Largest plausible time between two feedback stamps; a larger (or non-positive) '
-              'step does not update the integral.', range=(1e-4, 10.0)),
-    ParamSpec('feedback', 'estimate', 'string', '',
-              "'estimate' (sensor-less, the UKF's estimate) or 'measured' (joint_measured: "
-              'comparison runs only).', choices=('estimate', 'measured')),
-    ParamSpec('feedback_timeout', 0.1, 'double', 's',
-              'No feedback for this long (wall clock): the valves go to safe_command.',
-              range=(0.001, 60.0)),
-    ParamSpec('safe_command', list(REST_COMMAND), 'double[]', 'V',
-              'Valve voltages when disabled or without feedback: by default both valves at beta '
-              '(equal co-contraction, the joint rests near 0 deg).'),
-    ParamSpec('enabled', True, 'bool', '', 'Control at start (else: safe_command until enabled).'),
-    ParamSpec('frame_id', 'pam_joint', 'string', '',
-              'frame_id of the published headers (valve_command, controller_state).'),
-    WARN_RATIO_PARAM,
-    HARDWARE_ID_PARAM,
-    *REALTIME_PARAMS,
-)
-SUMMARY = [
-    'Sensor-less PI controller (pam_controller): u1 = beta + Kp e + I, u2 = beta - Kp e - I on',
-    'the estimate, saturated to [u_min, u_max] with anti-windup. Default namespace /pam.',
-    '  subscribes  estimate (JointEstimate) or joint_measured, reference (Reference)',
-    '  publishes   valve_command (ValveCommand), controller_state (ControllerState), /diagnostics',
-    'Service ~/enable (std_srvs/SetBool).',
-]
-
-
-def gains_from(values: dict, mode: str) -> PiGains:
-    return PiGains(values[f'kp_{mode}'], values[f'ki_{mode}'], values['beta'], values['u_min'],
-                   values['u_max'])
-
-
-def checked_gains(values: dict) -> tuple[PiGains, PiGains]:
-    """The angle and torque gains of `values`; a ConfigError naming the problem if not usable."""
-    try:
-        return validate_gains(gains_from(values, 'angle')), validate_gains(
-            gains_from(values, 'torque'))
-    except ValueError as exc:
-        raise ConfigError(f'gains/limits: {exc}') from exc
-
-
-def build_loop(values: dict) -> ControlLoop:
-    """ConfigError naming the problem if the gains or limits are not usable."""
-    angle, torque = checked_gains(values)
-    safe = check_command('safe_command', values['safe_command'])
-    return ControlLoop(angle, torque, values['anti_windup'],
-                       values['tracking_time'], values['dt_max'], safe,
-                       ANGLE if values['mode'] == 'angle' else TORQUE,
-                       values['initial_reference'], values['enabled'])
+from .control_loop import ANGLE, MODE_NAMES
+from .pi_config import NODE_NAME, PARAMETERS, SUMMARY, PiConfig
 
 
 class PiNode(LinkedNode):
@@ -157,11 +72,10 @@ class PiNode(LinkedNode):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = parameter_values(self, PARAMETERS)
-        self.loop = build_loop(self.values)
-        self._frame_id = self.values['frame_id']
+        self.config = parameter_values(self, PARAMETERS, check=PiConfig.from_values)
+        self.loop = self.config.make_loop()
         # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
-        self.realtime = RealtimeKnobs(self.get_logger(), self.values)
+        self.realtime = RealtimeKnobs(self.get_logger(), self.config.realtime)
         self.realtime.apply_to_executor()
         self.gaps = SampleGaps()              # of the estimates' sample counter
         self.logs = ThrottledLogs(self.get_logger(), 1.0)
@@ -173,7 +87,7 @@ class PiNode(LinkedNode):
         self.state_pub = self.guard.wrap(      # for the outside: only while subscribed
             self.create_publisher(ControllerState, CONTROLLER_STATE, SAMPLE_QOS), safe=safe,
             subscribed_only=True)
-        if self.values['feedback'] == 'estimate':
+        if self.config.feedback == 'estimate':
             self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
         else:
             self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_measured,
@@ -185,11 +99,11 @@ class PiNode(LinkedNode):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.diagnostics = DiagnosticsPublisher(self, 'PI controller',
-                                                self.values['hardware_id'], self._report)
+                                                self.config.hardware_id, self._report)
         self.diagnostics.add_check(self.guard.report)
         self.diagnostics.add_check(self._clamp_report)
         self.diagnostics.add_check(
-            lambda: self.gaps.report(self.values['lost_samples_warn_ratio']))
+            lambda: self.gaps.report(self.config.lost_samples_warn_ratio))
         self.diagnostics.add_check(self.logs.report)
         self.diagnostics.add_check(self.realtime.report)
         self.create_timer(0.05, self._watchdog)
@@ -200,13 +114,7 @@ class PiNode(LinkedNode):
         self._was_saturated = False           # the last command's (DEBUG lines at the edges)
         self._saturated_since = 0             # self.saturated when it went into saturation
         self._reported_clamps = 0
-        self.get_logger().info(
-            f"{MODE_NAMES[self.loop.mode]} mode, feedback {self.values['feedback']}; gains angle "
-            f"kp {self.values['kp_angle']:g} V/rad ki {self.values['ki_angle']:g} V/(rad s), "
-            f"torque kp {self.values['kp_torque']:g} V/(N m) ki {self.values['ki_torque']:g} "
-            f"V/(N m s); beta {self.values['beta']:g} V, limits [{self.values['u_min']:g}, "
-            f"{self.values['u_max']:g}] V, anti-windup {self.values['anti_windup']}; "
-            f"{'enabled' if self.loop.enabled else 'disabled'}")
+        self.get_logger().info(self.config.describe())
 
     # --- messages -------------------------------------------------------------------------------
     def _on_estimate(self, msg: JointEstimate) -> None:
@@ -233,7 +141,7 @@ class PiNode(LinkedNode):
     def _publish(self, out, stamp, feedback: float) -> None:
         command = ValveCommand(u1=out.u1, u2=out.u2)
         command.header.stamp = stamp
-        command.header.frame_id = self._frame_id
+        command.header.frame_id = self.config.frame_id
         self.command_pub.publish(command)
         self.commands += 1
         self.saturated += int(out.saturated)
@@ -251,11 +159,12 @@ class PiNode(LinkedNode):
         if out.saturated:
             self._saturated_since = self.saturated
             how = ('the integral frozen while the error pushes further'
-                   if self.values['anti_windup'] == 'conditional' else
-                   f"the integral pulled back (tracking_time {self.values['tracking_time']:g} s)")
+                   if self.config.anti_windup == 'conditional' else
+                   f'the integral pulled back (tracking_time {self.config.tracking_time:g} s)')
+            limits = self.config.angle
             self.get_logger().debug(
                 f'saturated: u1 {out.u1:.3f} V, u2 {out.u2:.3f} V at the limits '
-                f"[{self.values['u_min']:g}, {self.values['u_max']:g}] V (error {out.error:.4g}, "
+                f'[{limits.u_min:g}, {limits.u_max:g}] V (error {out.error:.4g}, '
                 f'P {out.p_term:.3f} V, I {out.i_term:.3f} V); anti-windup: {how}')
         else:
             self.get_logger().debug(
@@ -290,35 +199,33 @@ class PiNode(LinkedNode):
     def _watchdog(self) -> None:
         if self._last_feedback is None or self._stale:
             return
-        if time.monotonic() - self._last_feedback > self.values['feedback_timeout']:
+        if time.monotonic() - self._last_feedback > self.config.feedback_timeout:
             self._stale = True
             self.get_logger().warn(
-                f"no feedback for {self.values['feedback_timeout']:g} s: valves to safe_command "
+                f'no feedback for {self.config.feedback_timeout:g} s: valves to safe_command '
                 f'{list(self.loop.safe_command)} V')
             self._publish(self.loop.safe_output(), self.get_clock().now().to_msg(), math.nan)
 
     # --- run-time parameters: on-set checks, post-set applies ------------------------------------
-    def _proposed(self, params) -> tuple[dict, PiGains, PiGains]:
-        """The values after `params` and the two modes' gains, checked as at start (a ValueError
-        or TypeError naming the problem)."""
-        proposed = dict(self.values)
-        proposed.update((p.name, p.value) for p in params)
-        check_all(PARAMETERS, proposed)
-        return (proposed, *checked_gains(proposed))
+    def _proposed(self, params) -> PiConfig:
+        """The configuration after `params`, checked as at start (a ConfigError, ValueError or
+        TypeError naming the problem)."""
+        return self.config.changed({p.name: p.value for p in params})
 
     def _check_parameters(self, params) -> SetParametersResult:
         """rclpy's on-set callback: accept or reject with a reason; nothing changes here."""
         try:
             self._proposed(params)
-        except (ValueError, TypeError) as exc:
+        except (ConfigError, ValueError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, params) -> None:
         """rclpy's post-set callback: the accepted values reach the running controllers."""
-        values, angle, torque = self._proposed(params)
-        self.loop.set_gains(angle, torque, values['anti_windup'], values['tracking_time'])
-        self.values = values
+        config = self._proposed(params)
+        self.loop.set_gains(config.angle, config.torque, config.anti_windup,
+                            config.tracking_time)
+        self.config = config
         self.get_logger().info('parameters changed: ' + ', '.join(
             f'{p.name}={p.value}' for p in params))
 
@@ -339,7 +246,7 @@ class PiNode(LinkedNode):
                   'integral term (V)': self.loop.controller.i_term,
                   'time since feedback (s)': age, 'implausible dt (skipped)': self.loop.bad_dt,
                   'non-finite feedback': self.loop.bad_feedback,
-                  'feedback source': self.values['feedback']}
+                  'feedback source': self.config.feedback}
         if not self.loop.enabled:
             return WARN, 'disabled: valves at safe_command', values
         if self._last_feedback is None:

@@ -42,6 +42,7 @@ from numba import njit
 
 from pam_estimator.evaluation import run_ukf
 from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, INFO_TORQUE, ukf_step
+from pam_estimator.valid_readings import NIS_GATE_OFF, PRESSURE_MAX, PRESSURE_MIN
 from pam_model.effects import Effects
 from pam_model.metrics import metrics
 from pam_model.mismatch import MismatchScenario
@@ -112,7 +113,8 @@ def ukf_runs_kernel(p_measured, U, x0s, est_arrays, h, kappa_u, kappa_alpha, fri
         tau[b, 0] = joint_torque(x[0], F1, F2, p_array[0])
         for k in range(1, n):
             ukf_step(x, P, U[k - 1], p_measured[b, k], Q, R, h, p_array, kappa_u, kappa_alpha,
-                     friction_law, force_model, locked, x0s[b, 0], 0.0, 1.0e3, 2.0e6, info)
+                     friction_law, force_model, locked, x0s[b, 0], NIS_GATE_OFF, PRESSURE_MIN,
+                     PRESSURE_MAX, info)
             psi[b, k] = x[0]
             tau[b, k] = info[INFO_TORQUE]
     return psi, tau

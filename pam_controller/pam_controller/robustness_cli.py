@@ -156,20 +156,18 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 def body(argv=None) -> int:
     args = parse_args(argv)
-    from pam_common.node_params import defaults
     from pam_model.identification.campaign import CampaignPlan
     from pam_model.mismatch import load_scenario
     from pam_model.model import PamModel
 
-    from . import pi_node
-    from .pi_node import gains_from
+    from .pi_config import PiConfig
     from .robustness import Settings, run_sweep
     from .robustness_report import format_ranking, format_table, json_document, plot, table_rows
 
     clock = time.perf_counter()
     base = load_scenario(args.base)
-    values = defaults(pi_node.PARAMETERS)
-    gains = gains_from(values, 'angle')
+    pi = PiConfig.default()
+    gains = pi.angle
     plan = (CampaignPlan(hold=5.0, pair_hold=2.0, free_duration=30.0, seed=args.seed)
             if args.quick else CampaignPlan(seed=args.seed))
     estimators = args.estimators + tuple(
@@ -180,7 +178,7 @@ def body(argv=None) -> int:
                         reference_hold=args.hold,
                         estimators=estimators, campaign=plan, gains=(gains.kp, gains.ki),
                         limits=gains,
-                        anti_windup=values['anti_windup'], tracking_time=values['tracking_time'])
+                        anti_windup=pi.anti_windup, tracking_time=pi.tracking_time)
     print(f"pam-robustness: base '{base.name}' ({base.effects.describe()} effects), "
           f'magnitudes {", ".join(f"{m:g}" for m in args.magnitudes)} x realistic, seed '
           f'{args.seed}, gains kp {gains.kp:g} V/rad ki {gains.ki:g} V/(rad s)', flush=True)

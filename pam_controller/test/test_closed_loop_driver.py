@@ -101,14 +101,14 @@ DISTURBANCES = {'driver_node': ('safe output', 'device lost'), 'pi_node': ('no f
 def batch_steady_state_error(mode: str) -> float:
     """The same loop on the batch simulator (the lockstep loop of sim_node + ukf_node + pi_node)."""
     from pam_controller.closed_loop import simulate_closed_loop
-    from pam_controller.pi_node import PARAMETERS
+    from pam_controller.pi_config import PiConfig
     from pam_model.mismatch import load_scenario
     from pam_model.model import PamModel
     from pam_model.parameters import load_parameters
 
     spec = MODES[mode]
-    defaults = {p.name: p.default for p in PARAMETERS}
-    gains = (defaults[f'kp_{mode}'], defaults[f'ki_{mode}'])   # pi_node's defaults
+    pi_gains = getattr(PiConfig.default(), mode)
+    gains = (pi_gains.kp, pi_gains.ki)   # pi_node's defaults
     scenario = load_scenario('mild')
     t = np.arange(round((PRE + HOLD) * 1000)) * 1e-3
     reference = np.where(t < PRE, 0.0, spec['level'])

@@ -9,9 +9,11 @@ front; the rest of pam_model lazily, so that `sim_node --help` stays instant.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
 from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
@@ -29,9 +31,16 @@ from pam_common.node_params import (
     usage_text as _usage_text,
     wants_help,
 )
-from pam_common.realtime_knobs import REALTIME_PARAMS
+from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeRequest, check_realtime
 from pam_model.model_choices import ForceModel, FrictionLaw
 from pam_model.rest import REST_COMMAND, REST_STATE
+
+if TYPE_CHECKING:   # imported lazily at run time (sim_node --help stays instant)
+    from pam_model.mismatch import MismatchScenario
+    from pam_model.model import PamModel
+    from pam_model.parameters import Parameters
+    from pam_model.rig import SimulatedRig
+    from pam_model.sensor import PressureSensor
 
 __all__ = [
     'PARAMETERS',
@@ -157,35 +166,54 @@ def usage_text(prog: str = 'sim_node') -> str:
     ))
 
 
-@dataclass
+@dataclass(frozen=True)
 class SimConfig:
-    """The checked configuration of sim_node and the pam_model objects made from it."""
+    """The checked configuration of sim_node and the pam_model objects made from it, built once
+    by build_config (ConfigError naming the parameter otherwise). Units: rate Hz, initial_state
+    [psi rad, psi_dot rad/s, P1 Pa, P2 Pa], initial_command [u1 V, u2 V], lockstep_timeout s,
+    max_catch_up periods, joint_states_rate Hz (0: not published)."""
 
-    values: dict
-    parameters: Any            # pam_model.parameters.Parameters of the plant (mismatch applied)
-    scenario: Any              # pam_model.mismatch.MismatchScenario or None
-    sensor: Any                # pam_model.sensor.PressureSensor
-    model: Any                 # pam_model.model.PamModel
+    timing: str                         # 'realtime' or 'lockstep'
+    rate: float
+    initial_state: tuple[float, ...]
+    initial_command: tuple[float, float]
+    seed: int
+    lockstep_timeout: float
+    max_catch_up: int
+    publish_clock: bool
+    publish_supply_pressure: bool
+    joint_mode: str                     # 'free' or 'locked'
+    plant_parameters: str
+    mismatch: str
+    frame_id: str
+    hardware_id: str
+    joint_name: str
+    joint_states_rate: float
+    realtime: RealtimeRequest
+    parameters: Parameters              # of the plant (mismatch applied)
+    scenario: MismatchScenario | None
+    sensor: PressureSensor
+    model: PamModel
     sensor_source: str = ''
-    summary: list = field(default_factory=list)
-
-    @property
-    def timing(self) -> str:
-        return self.values['timing']
-
-    @property
-    def rate(self) -> float:
-        return self.values['rate']
+    summary: tuple[str, ...] = ()
+    #: the checked parameter values it was built from (read-only)
+    values: Mapping[str, Any] = field(repr=False, compare=False,
+                                      default_factory=lambda: MappingProxyType({}))
 
     @property
     def h(self) -> float:
+        """s, the model step (1 / rate)."""
         return self.model.h
 
-    def make_rig(self):
+    @property
+    def lockstep(self) -> bool:
+        return self.timing == 'lockstep'
+
+    def make_rig(self) -> SimulatedRig:
         """A fresh pam_model SimulatedRig in the initial state."""
         from pam_model.rig import SimulatedRig
-        return SimulatedRig(self.model, self.values['initial_state'], sensor=self.sensor,
-                            seed=self.values['seed'], u0=tuple(self.values['initial_command']),
+        return SimulatedRig(self.model, self.initial_state, sensor=self.sensor,
+                            seed=self.seed, u0=self.initial_command,
                             effects=self.scenario.effects if self.scenario is not None else None)
 
 
@@ -202,6 +230,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
     if not values['valve_map'].strip():
         fail('valve_map', "empty; use 'default' or a CSV path")
     check_joint_states(values, values['rate'])
+    check_realtime(values)
 
     from pam_model.mismatch import load_scenario
     from pam_model.model import PamModel
@@ -254,14 +283,22 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
                       if sensor.bits else f'no quantisation, range [{sensor.range_min:g}, '
                       f'{sensor.range_max:g}] Pa')
                    + f' ({bits_from}), seed {values["seed"]}')
-    config = SimConfig(values=values, parameters=params, scenario=scenario, sensor=sensor,
-                       model=model, sensor_source=sensor_text)
+    v = values
+    config = SimConfig(
+        timing=v['timing'], rate=v['rate'], initial_state=tuple(v['initial_state']),
+        initial_command=(v['initial_command'][0], v['initial_command'][1]), seed=v['seed'],
+        lockstep_timeout=v['lockstep_timeout'], max_catch_up=v['max_catch_up'],
+        publish_clock=v['publish_clock'], publish_supply_pressure=v['publish_supply_pressure'],
+        joint_mode=v['joint_mode'], plant_parameters=v['plant_parameters'],
+        mismatch=v['mismatch'], frame_id=v['frame_id'], hardware_id=v['hardware_id'],
+        joint_name=v['joint_name'], joint_states_rate=v['joint_states_rate'],
+        realtime=RealtimeRequest.from_values(v), parameters=params, scenario=scenario,
+        sensor=sensor, model=model, sensor_source=sensor_text, values=MappingProxyType(values))
     try:
         config.make_rig()  # the last checks (state shape) live in SimulatedRig
     except ValueError as exc:
         raise ConfigError(f'cannot build the simulated rig: {exc}') from exc
-    config.summary = describe(config)
-    return config
+    return dataclasses.replace(config, summary=tuple(describe(config)))
 
 
 def describe(config: SimConfig) -> list[str]:

@@ -1,7 +1,9 @@
 """sim_node: the simulated antagonistic PAM rig, a drop-in for the hardware driver.
 
-A thin ROS wrapper around pam_model.rig.SimulatedRig (physics, sensor model, command sanitising
-and counting all live there). Run `sim_node --help` for the parameters.
+A thin ROS wrapper around pam_driver.sim_core.SimCore, which holds every decision without ROS
+(when the plant steps, which commands apply, what a sample reads, the rig's health) over
+pam_model.rig.SimulatedRig (physics, sensor model, command sanitising and counting). Run
+`sim_node --help` for the parameters.
 
 Topics (relative names resolve under the node namespace, '/pam' unless remapped with
 `--ros-args -r __ns:=/other`):
@@ -98,7 +100,6 @@ COMMAND_STEP_DEBUG (0.5 V) in u1 or u2 (a sanitised command as applied). A comma
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 import threading
@@ -111,19 +112,17 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
-from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
-from pam_common.latency import CommandTiming
 from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
-from pam_common.run_health import LATE_SAMPLES, MISSED_SAMPLES, SAMPLES_TAKEN, WORST_STALL_MS
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
-from pam_common.timing import DeadlineSchedule, RateStatistics
+from pam_common.timing import DeadlineSchedule
 from pam_common.topics import (
     CLOCK,
     DEFAULT_NAMESPACE,
@@ -134,14 +133,12 @@ from pam_common.topics import (
     VALVE_COMMAND,
 )
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
-from pam_driver.supply_sensor import SupplySensor
+from pam_driver.sim_core import SimCore, SimSample
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
 
 NODE_NAME = 'sim_node'
 DIAGNOSTICS_PERIOD = 1.0   # s
-RATE_TOLERANCE = 0.05      # realtime: WARN when the achieved rate is off by more than this
-LATE_TOLERANCE = 0.0       # realtime: WARN when more than this fraction of a window is late
 LOG_THROTTLE = 1.0         # s between two log lines about bad input
 COMMAND_STEP_DEBUG = 0.5   # V: a DEBUG line when the applied command moves this far
 
@@ -154,25 +151,13 @@ class SimNode(LinkedNode):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
         self.config = None
-        self._rig = None
-        self._lock = threading.Lock()
+        self.core = None            # SimCore: the plant and every decision
         self._stop = threading.Event()
         self._thread = None
-        self._fault = ''
         self._lockstep_timer = None
-        # counters (guarded by _lock)
-        self._commands_received = 0
-        self._past_commands = 0
-        self._nonfinite_samples = 0
-        self._samples_published = 0
-        self._republished = 0
-        self._last_raw_command = (math.nan, math.nan)
         self._marked_command = None  # the applied command of the last marked change (V)
         self._previous_marked = None  # the one before it
-        self._reported = {'bad': 0, 'past': 0}
-        self._current = None        # lockstep: the messages of the current sample
         self._last_publish = 0.0    # monotonic time of the last (re)publication
-        self._timing = CommandTiming()   # realtime: sample -> command latency at the rig
         self._logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
         self._log_nonfinite = self._logs.new('error')
         self._log_past, self._log_bad = self._logs.new(), self._logs.new()
@@ -180,8 +165,7 @@ class SimNode(LinkedNode):
     # ------------------------------------------------------------------ set-up
     def configure(self) -> None:
         """Declare and check every parameter, build the plant and the ROS interfaces."""
-        self.config = parameter_values(self, PARAMETERS, check=build_config)
-        values = self.config.values
+        self.config = config = parameter_values(self, PARAMETERS, check=build_config)
         if self.get_parameter('use_sim_time').value:
             self.get_logger().warning('use_sim_time is true: ignored, the simulated rig runs on '
                                       'the system clock (it publishes /clock itself with '
@@ -189,16 +173,14 @@ class SimNode(LinkedNode):
             self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, False)])
 
         # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
-        self._realtime = RealtimeKnobs(self.get_logger(), values)
+        self._realtime = RealtimeKnobs(self.get_logger(), config.realtime)
         self._realtime.apply_to_executor()
-        self._rig = self.config.make_rig()
-        warm_up = self.config.make_rig()  # load the compiled model now, not at the 2nd sample
+        self.core = SimCore(config)
+        warm_up = config.make_rig()  # load the compiled model now, not at the 2nd sample
         warm_up.step()
         warm_up.sample()
-        self._frame_id = values['frame_id']
-        self._lockstep = self.config.timing == 'lockstep'
-        self._period_ns = 1e9 / self.config.rate
-        self._stats = RateStatistics(1.0 / self.config.rate, time.monotonic())
+        self._frame_id = config.frame_id
+        self._lockstep = config.lockstep
 
         self._guard = FiniteGuard(self.get_logger())    # non-finite -> the last finite value
         self._pub_pressures = self._guard.wrap(
@@ -206,29 +188,28 @@ class SimNode(LinkedNode):
         self._pub_joint = self._guard.wrap(
             self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
         # joint_measured as JointState, from the message after its guard (pam_common.joint_states)
-        rate = values['joint_states_rate']
+        rate = config.joint_states_rate
         self._joint_states = JointStates(
             self._guard.wrap(self.create_publisher(JointState, JOINT_STATES, SAMPLE_QOS))
-            if rate else None, JointState(), values['joint_name'], self._frame_id, rate,
-            self.config.rate)
+            if rate else None, JointState(), config.joint_name, self._frame_id, rate,
+            config.rate)
         self._pub_clock = (self.create_publisher(Clock, CLOCK, CLOCK_QOS)
-                           if values['publish_clock'] else None)
-        self._supply = self._pub_supply = None
-        if values['publish_supply_pressure']:
-            self._supply = SupplySensor(self._rig, self.config.sensor, values['seed'])
+                           if config.publish_clock else None)
+        self._pub_supply = None
+        if config.publish_supply_pressure:
             self._pub_supply = self._guard.wrap(
                 self.create_publisher(FluidPressure, SUPPLY_PRESSURE, SAMPLE_QOS), hold=True)
         self._sub_command = self.create_subscription(ValveCommand, VALVE_COMMAND,
                                                      self._on_command, SAMPLE_QOS)
-        reset_latency = self._timing.reset_callback(self.get_logger())
+        reset_latency = self.core.timing.reset_callback(self.get_logger())
 
         def reset_statistics(request, response):    # the rig's timing totals and the latency
-            self._stats.reset_totals()
+            self.core.stats.reset_totals()
             response = reset_latency(request, response)
             response.message = 'sample timing and ' + response.message
             return response
         self.create_service(Trigger, '~/reset_statistics', reset_statistics)
-        self._diagnostics = DiagnosticsPublisher(self, 'simulated rig', values['hardware_id'],
+        self._diagnostics = DiagnosticsPublisher(self, 'simulated rig', config.hardware_id,
                                                  self._report, DIAGNOSTICS_PERIOD)
         self._diagnostics.add_check(self._guard.report)
         self._diagnostics.add_check(self._logs.report)
@@ -252,12 +233,10 @@ class SimNode(LinkedNode):
 
     def start(self) -> None:
         """Start sampling: the realtime thread, or sample 0 and the lockstep watchdog."""
-        self._stats.restart(time.monotonic())
+        self.core.stats.restart(time.monotonic())
         if self._lockstep:
-            with self._lock:
-                self._current = self._take_sample(self._lockstep_stamp(0))
-            self._publish(self._current)
-            timeout = self.config.values['lockstep_timeout']
+            self._publish(self._messages(self.core.first_lockstep_sample()))
+            timeout = self.config.lockstep_timeout
             if timeout > 0.0:
                 self._lockstep_timer = self.create_timer(max(timeout / 4.0, 0.005),
                                                          self._on_lockstep_watchdog)
@@ -276,37 +255,28 @@ class SimNode(LinkedNode):
             self._thread = None
 
     # ------------------------------------------------------------------ sampling
-    def _lockstep_stamp(self, k: int) -> int:
-        return round(k * self._period_ns)
-
-    def _take_sample(self, t_ns: int):
-        """Read the rig (draws sensor noise) into messages; None if the state is not finite.
-
-        Call with _lock held."""
-        sample = self._rig.sample()
-        values = (float(sample.p_measured[0]), float(sample.p_measured[1]), float(sample.x[0]),
-                  float(sample.x[1]), float(sample.torque))
-        if not all(math.isfinite(v) for v in values):
-            self._nonfinite_samples += 1
-            self._log_nonfinite(f'non-finite sample at step {self._rig.k} suppressed: state '
-                                f'{list(sample.x)}')
+    def _messages(self, sample: SimSample | None):
+        """The messages of a sample (None: a non-finite one, suppressed: logged)."""
+        if sample is None:
+            self._log_nonfinite(f'non-finite sample at step {self.core.rig.k} suppressed: state '
+                                f'{self.core.nonfinite_state}')
             return None
-        self._timing.on_sample(t_ns)
-        stamp = ns_stamp(t_ns)
+        stamp = ns_stamp(sample.t_ns)
         pressures = Pressures()
         pressures.header.stamp = stamp
         pressures.header.frame_id = self._frame_id
-        pressures.p1, pressures.p2 = values[0], values[1]
-        pressures.sample = self._rig.k + 1
+        pressures.p1, pressures.p2 = sample.p1, sample.p2
+        pressures.sample = sample.counter
         joint = JointMeasurement()
         joint.header.stamp = stamp
         joint.header.frame_id = self._frame_id
-        joint.angle, joint.angular_velocity, joint.torque = values[2], values[3], values[4]
+        joint.angle, joint.angular_velocity, joint.torque = (sample.angle, sample.velocity,
+                                                             sample.torque)
         clock = Clock(clock=stamp) if self._pub_clock is not None else None
         supply = None
-        if self._supply is not None:
-            supply = FluidPressure(fluid_pressure=self._supply.measure(),
-                                   variance=self._supply.variance)
+        if sample.supply is not None:
+            supply = FluidPressure(fluid_pressure=sample.supply,
+                                   variance=self.core.supply.variance)
             supply.header = pressures.header
         return clock, pressures, joint, supply
 
@@ -323,8 +293,7 @@ class SimNode(LinkedNode):
         self._joint_states.publish(joint.header.stamp, pressures.sample, joint.angle,
                                    joint.angular_velocity, joint.torque)
         self._last_publish = time.monotonic()
-        with self._lock:
-            self._samples_published += 1
+        self.core.published()
 
     def _realtime_loop(self) -> None:
         self._realtime.apply_to_thread('sim_node_sampler')
@@ -332,9 +301,9 @@ class SimNode(LinkedNode):
         start = time.monotonic()
         start_ns = self.get_clock().now().nanoseconds   # deadline 0 on the node clock
         schedule = DeadlineSchedule(period, start, max_catch_up=None)   # the plant never pauses
-        burst = self.config.values['max_catch_up']
-        self._stats.restart(start)
-        first = True
+        burst = self.config.max_catch_up
+        core = self.core
+        core.stats.restart(start)
         try:
             while not self._stop.is_set():
                 delay = schedule.deadline - time.monotonic()
@@ -347,67 +316,38 @@ class SimNode(LinkedNode):
                 overdue = schedule.overdue(now)
                 missed = overdue if overdue > burst else 0
                 lateness = schedule.lateness(now)     # of the oldest sample due: the stall
-                with self._lock:
-                    for _ in range(missed):
-                        if not first:
-                            self._rig.step()
-                        first = False
-                        schedule.advance(now)
-                    if not first:
-                        self._rig.step()
-                    first = False
-                    messages = self._take_sample(start_ns + round((schedule.deadline - start)
-                                                                  * 1e9))
-                self._publish(messages)
-                self._stats.record(lateness, missed)
+                for _ in range(missed):
+                    schedule.advance(now)
+                sample = core.realtime_sample(missed, start_ns + round((schedule.deadline - start)
+                                                                       * 1e9))
+                self._publish(self._messages(sample))
+                core.stats.record(lateness, missed)
                 schedule.advance(now)
         except Exception as exc:  # noqa: BLE001 - report, do not die silently
             if self._stop.is_set() or not rclpy.ok(context=self.context):
                 return  # shutting down: the publishers went away under us
-            self._fault = f'sampling thread stopped: {type(exc).__name__}: {exc}'
-            self.get_logger().error(self._fault)
+            core.fault = f'sampling thread stopped: {type(exc).__name__}: {exc}'
+            self.get_logger().error(core.fault)
 
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ValveCommand) -> None:
-        messages = None
-        with self._lock:
-            self._commands_received += 1
-            self._last_raw_command = (msg.u1, msg.u2)
-            step = self._rig.k           # the step the command applies from
-            if self._lockstep:
-                stamp = stamp_ns(msg.header.stamp)
-                t_k = self._lockstep_stamp(self._rig.k)
-                if stamp != 0 and stamp < t_k:
-                    self._past_commands += 1
-                    past, k = self._past_commands, self._rig.k
-                    ok = True
-                else:
-                    ok = self._rig.set_command(msg.u1, msg.u2)
-                    self._rig.step()
-                    messages = self._current = self._take_sample(self._lockstep_stamp(self._rig.k))
-                    past = None
-            else:
-                ok = self._rig.set_command(msg.u1, msg.u2)
-                past = None
-                self._timing.on_command(stamp_ns(msg.header.stamp), time.time_ns())
-            applied = self._rig.u if past is None else None
-            non_finite = self._rig.non_finite_commands
-            out_of_range = self._rig.out_of_range_commands
-            received = self._commands_received
-        if messages is not None:
-            self._stats.record(0.0)
-            self._publish(messages)
-        if applied is not None and self._marked_change(applied) and \
+        out = self.core.on_command(msg.u1, msg.u2, stamp_ns(msg.header.stamp), time.time_ns())
+        if out.sample is not None:
+            self.core.stats.record(0.0)
+            self._publish(self._messages(out.sample))
+        if out.applied is not None and self._marked_change(out.applied) and \
                 self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
-            self._debug_command(applied, received, step)
-        if past is not None:
-            self._log_past(f'ignored a valve_command from the past (stamp {stamp / 1e9:.6f} s '
-                           f'< t_k = {t_k / 1e9:.6f} s of step {k}); {past} so far')
-        if not ok:
+            self._debug_command(out.applied, out.received, out.step)
+        if out.past:
+            self._log_past(f'ignored a valve_command from the past (stamp '
+                           f'{stamp_ns(msg.header.stamp) / 1e9:.6f} s < t_k = '
+                           f'{out.t_k_ns / 1e9:.6f} s of step {out.step}); {out.past} so far')
+        if not out.ok:
+            u = self.core.rig.u
             self._log_bad(
                 f'bad valve_command u1={msg.u1!r} V, u2={msg.u2!r} V sanitised to '
-                f'({self._rig.u[0]:g}, {self._rig.u[1]:g}) V ({SANITISE_RULE}); so far '
-                f'{non_finite} non-finite, {out_of_range} out-of-range voltages')
+                f'({u[0]:g}, {u[1]:g}) V ({SANITISE_RULE}); so far '
+                f'{out.non_finite} non-finite, {out.out_of_range} out-of-range voltages')
 
     def _marked_change(self, applied: tuple[float, float]) -> bool:
         """True for the first applied command and for one more than COMMAND_STEP_DEBUG away
@@ -424,8 +364,8 @@ class SimNode(LinkedNode):
         """DEBUG: the applied valve command changed markedly (see _marked_change)."""
         previous = self._previous_marked
         since = ('the first command (held the initial command u1 '
-                 f"{self.config.values['initial_command'][0]:g} V, u2 "
-                 f"{self.config.values['initial_command'][1]:g} V until now)"
+                 f'{self.config.initial_command[0]:g} V, u2 '
+                 f'{self.config.initial_command[1]:g} V until now)'
                  if previous is None else
                  f'was u1 {previous[0]:.3f} V, u2 {previous[1]:.3f} V at the last such line')
         self.get_logger().debug(
@@ -434,93 +374,18 @@ class SimNode(LinkedNode):
             f'{COMMAND_STEP_DEBUG:g} V of it are not logged)')
 
     def _on_lockstep_watchdog(self) -> None:
-        timeout = self.config.values['lockstep_timeout']
-        if self._current is None or time.monotonic() - self._last_publish < timeout:
+        timeout = self.config.lockstep_timeout
+        if self.core.current is None or time.monotonic() - self._last_publish < timeout:
             return
-        with self._lock:
-            self._republished += 1
-            k = self._rig.k
+        sample, k = self.core.republish()
         self.get_logger().info(f'lockstep: waiting for a valve_command for step {k} '
-                               f'(t = {self._lockstep_stamp(k) / 1e9:.6f} s); re-publishing '
+                               f'(t = {self.core.stamp(k) / 1e9:.6f} s); re-publishing '
                                'the current sample', throttle_duration_sec=10.0)
-        self._publish(self._current)
+        self._publish(self._messages(sample))
 
     # ------------------------------------------------------------------ diagnostics
     def _report(self):
-        window = self._stats.window(time.monotonic())
-        with self._lock:
-            rig = self._rig
-            bad = rig.bad_commands
-            values = {
-                'timing': self.config.timing,
-                'rate target (Hz)': self.config.rate,
-                'achieved rate (Hz)': window.achieved_rate,
-                'late steps (last window)': window.late_steps,
-                'max lateness (ms)': window.max_lateness * 1e3,
-                'samples published': self._samples_published,
-                'simulated time (s)': rig.t,
-                'commands received': self._commands_received,
-                'non-finite commands': rig.non_finite_commands,
-                'out-of-range commands': rig.out_of_range_commands,
-                'past commands ignored': self._past_commands,
-                'last command u1 (V)': rig.u[0],
-                'last command u2 (V)': rig.u[1],
-                'last command received (V)': self._last_raw_command,
-                'joint mode': self.config.values['joint_mode'],
-                'plant parameters': self.config.values['plant_parameters'],
-                'mismatch': self.config.values['mismatch'] or 'none',
-                'supply_pressure published': self._supply is not None,
-                'non-finite samples suppressed': self._nonfinite_samples,
-                'last sample counter': rig.k + 1,
-            }
-            if self._lockstep:
-                values['republished samples'] = self._republished
-            else:       # since the start or ~/reset_statistics
-                values.update({SAMPLES_TAKEN: window.total_samples
-                               + window.total_skipped_periods,
-                               LATE_SAMPLES: window.total_late_steps
-                               + window.total_skipped_periods,
-                               MISSED_SAMPLES: window.total_skipped_periods,
-                               WORST_STALL_MS: window.max_lateness_total * 1e3})
-                values.update(self._timing.histogram.summary())
-            new_bad = bad - self._reported['bad']
-            new_past = self._past_commands - self._reported['past']
-            self._reported = {'bad': bad, 'past': self._past_commands}
-            k = rig.k
-
-        problems = []
-        level = OK
-        if self._fault:
-            return ERROR, self._fault, values
-        if self._nonfinite_samples:
-            level = ERROR
-            problems.append(f'{self._nonfinite_samples} non-finite samples suppressed')
-        if new_bad:
-            level = max(level, WARN)
-            problems.append(f'{new_bad} bad command voltages sanitised in the last window')
-        if new_past:
-            level = max(level, WARN)
-            problems.append(f'{new_past} commands from the past ignored in the last window')
-        if (not self._lockstep and window.duration > 0.5
-                and not abs(window.achieved_rate - self.config.rate)
-                <= RATE_TOLERANCE * self.config.rate):
-            level = max(level, WARN)
-            problems.append(f'achieved rate {window.achieved_rate:.1f} Hz, target '
-                            f'{self.config.rate:g} Hz ({window.late_steps} late steps)')
-        if (not self._lockstep and window.samples
-                and window.late_steps > LATE_TOLERANCE * window.samples):
-            level = max(level, WARN)
-            problems.append(f'{window.late_steps} of {window.samples} samples late by more than '
-                            f'a period (max {window.max_lateness * 1e3:.2f} ms): not real time, '
-                            'the plant went on with the held command')
-        if problems:
-            message = '; '.join(problems)
-        elif self._lockstep:
-            message = (f'lockstep: step {k}, t = {self._lockstep_stamp(k) / 1e9:.3f} s, '
-                       f'{window.achieved_rate if window.samples else 0.0:.1f} steps/s')
-        else:
-            message = f'realtime: {window.achieved_rate:.1f} Hz'
-        return level, message, values
+        return self.core.report(time.monotonic())
 
 
 def started_sim_node(**node_kwargs) -> SimNode:

@@ -1,5 +1,6 @@
 """Unit tests of pam_driver.sim_config: parameter table, validation, --help text (no ROS)."""
 
+import dataclasses
 import math
 
 import pytest
@@ -147,3 +148,21 @@ def test_wants_help():
     assert wants_help(['sim_node', '-h'])
     assert not wants_help(['sim_node'])
     assert not wants_help(['sim_node', '--ros-args', '-p', 'frame_id:=-h'])
+
+
+def test_the_configuration_is_frozen_and_typed():
+    """Built once: the node reads typed fields, never the parameter strings, and cannot change
+    them."""
+    config = build_config({'timing': 'lockstep', 'initial_command': [4.0, 7.0], 'seed': 3,
+                           'thread_priority': 0, 'cpu_affinity': [1, 0, 1]})
+    assert config.lockstep and config.timing == 'lockstep' and config.rate == 1000.0
+    assert config.initial_command == (4.0, 7.0) and config.seed == 3
+    assert config.initial_state == (0.0, 0.0, 450000.0, 450000.0)
+    assert config.realtime.cpus == (0, 1) and config.realtime.priority == 0
+    assert isinstance(config.summary, tuple)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.rate = 500.0
+    with pytest.raises(TypeError):
+        config.values['rate'] = 500.0
+    with pytest.raises(ConfigError, match='cpu_affinity'):
+        build_config({'cpu_affinity': [-1]})

@@ -29,14 +29,11 @@ import numpy as np
 from numba import njit
 
 from pam_model.effects import Effects, MaxwellSlip, ValveLag
-from pam_model.effects_physics import (
-    forces_with_hysteresis,
-    friction_with_hysteresis,
-    step_with_effects,
-)
+from pam_model.effects_physics import step_with_effects
 from pam_model.model import PamModel
 from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import (
+    friction_torque,
     joint_torque,
     muscle_forces,
     rk4_step,
@@ -54,6 +51,7 @@ from .unscented import (
     symmetrise,
     unscented_transform,
 )
+from .valid_readings import NIS_GATE_OFF, PRESSURE_MAX, PRESSURE_MIN
 
 N_STATE = 4
 KAPPA = 0.0
@@ -161,14 +159,14 @@ def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model
     p = p_array[0]
     biased = x_post.shape[0] > N_STATE
     W = julier_weights(x_post.shape[0], KAPPA)
-    F1, F2 = forces_with_hysteresis(x_post[0], x_post[2], x_post[3], p, force_model, F_h1, F_h2)
+    F1, F2 = muscle_forces(x_post[0], x_post[2], x_post[3], p, force_model, F_h1, F_h2)
     tau = joint_torque(x_post[0], F1, F2, p)
     if biased:
         tau += x_post[6]
     sigmas_o, rep3 = julier_sigma_points(x_post, P_post, KAPPA)
     taus = np.empty(sigmas_o.shape[0])
     for i in range(sigmas_o.shape[0]):
-        f1, f2 = forces_with_hysteresis(sigmas_o[i, 0], sigmas_o[i, 2], sigmas_o[i, 3], p,
+        f1, f2 = muscle_forces(sigmas_o[i, 0], sigmas_o[i, 2], sigmas_o[i, 3], p,
                                         force_model, F_h1, F_h2)
         taus[i] = joint_torque(sigmas_o[i, 0], f1, f2, p)
         if biased:
@@ -181,8 +179,8 @@ def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model
         fh1, fh2 = F_h1, F_h2
         if biased:
             fh1, fh2 = torque_forces(x_post[0], x_post[6], p, F_h1, F_h2)
-        _, sliding = friction_with_hysteresis(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
-                                              friction_law, force_model, fh1, fh2)
+        _, sliding = friction_torque(x_post[0], x_post[1], x_post[2], x_post[3], h, p,
+                                     friction_law, force_model, fh1, fh2)
     sigma = subsystem_index(sliding, x_post[2], x_post[3], p)
     finite = np.all(np.isfinite(x_post)) and np.all(np.isfinite(P_post)) and np.isfinite(
         tau) and np.isfinite(tau_variance)
@@ -295,8 +293,8 @@ class PamUkf:
     model: PamModel = field(default_factory=PamModel)
     tuning: UkfTuning = DEFAULT_TUNING
     x0: tuple = REST_STATE
-    nis_gate: float = 0.0
-    y_range: tuple = (1.0e3, 2.0e6)
+    nis_gate: float = NIS_GATE_OFF
+    y_range: tuple = (PRESSURE_MIN, PRESSURE_MAX)
     extensions: Effects = NO_EXTENSIONS
     bias_states: BiasStates | None = None
 

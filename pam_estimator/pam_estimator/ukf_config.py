@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
 from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
@@ -19,10 +20,15 @@ from pam_common.node_params import (
     merge_overrides,
     usage_text as _usage_text,
 )
-from pam_common.realtime_knobs import REALTIME_PARAMS
+from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeRequest, check_realtime
 from pam_common.sample_gaps import WARN_RATIO_PARAM
 from pam_model.model_choices import ForceModel, FrictionLaw
 from pam_model.rest import REST_COMMAND, REST_STATE
+
+from .valid_readings import NIS_GATE_OFF, PRESSURE_MAX, PRESSURE_MIN
+
+if TYPE_CHECKING:   # imported lazily at run time (ukf_node --help stays instant)
+    from .pam_ukf import PamUkf
 
 JOINT_MODES = ('free', 'locked')
 TUNING_PRESETS = ('default', 'paper')
@@ -66,14 +72,14 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Initial estimate [psi, psi_dot, P1, P2] (also the state a reset returns to).'),
     ParamSpec('initial_command', list(REST_COMMAND), 'double[]', 'V',
               'Valve voltages assumed held until the first valve_command arrives.'),
-    ParamSpec('nis_gate', 0.0, 'double', '',
+    ParamSpec('nis_gate', NIS_GATE_OFF, 'double', '',
               'Reject an update whose normalised innovation squared exceeds this (chi-square, '
               '2 degrees of freedom: 13.8 rejects 0.1 % of good samples); 0: no gate.',
               range=(0.0, 1.0e9)),
-    ParamSpec('pressure_min', 1000.0, 'double', 'Pa',
+    ParamSpec('pressure_min', PRESSURE_MIN, 'double', 'Pa',
               'Pressure readings below this (absolute) are sensor faults: the update is skipped.',
               range=(0.0, 1.0e7)),
-    ParamSpec('pressure_max', 2.0e6, 'double', 'Pa',
+    ParamSpec('pressure_max', PRESSURE_MAX, 'double', 'Pa',
               'Pressure readings above this are sensor faults: the update is skipped.',
               range=(0.0, 1.0e8)),
     ParamSpec('stale_timeout', 0.1, 'double', 's',
@@ -109,13 +115,26 @@ def usage_text(prog: str = 'ukf_node') -> str:
         f'{prog} --ros-args --params-file <share>/pam_estimator/config/ukf_node.yaml'])
 
 
-@dataclass
+@dataclass(frozen=True)
 class UkfConfig:
-    """Checked values and the filter built from them."""
+    """ukf_node's checked configuration and the filter built from it, once, by build_config
+    (ConfigError naming the parameter otherwise). Units: initial_command [u1 V, u2 V],
+    stale_timeout s, joint_states_rate Hz (0: not published)."""
 
-    values: dict
-    ukf: Any                   # pam_estimator.pam_ukf.PamUkf
-    summary: list
+    ukf: PamUkf
+    initial_command: tuple[float, float]
+    use_supply_pressure: bool
+    frame_id: str
+    hardware_id: str
+    stale_timeout: float
+    lost_samples_warn_ratio: float
+    joint_name: str
+    joint_states_rate: float
+    realtime: RealtimeRequest
+    summary: tuple[str, ...] = ()
+    #: the checked parameter values it was built from (read-only)
+    values: Mapping[str, Any] = field(repr=False, compare=False,
+                                      default_factory=lambda: MappingProxyType({}))
 
 
 def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
@@ -136,11 +155,12 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
 
     preset = TUNINGS[values['tuning']]
     diagonals = {}
-    for name, field, length in (('process_noise', 'Q', 4), ('measurement_noise', 'R', 2),
+    for name, diagonal, length in (('process_noise', 'Q', 4), ('measurement_noise', 'R', 2),
                                 ('initial_covariance', 'P0', 4)):
         given = values[name]
-        diagonals[field] = (tuple(check_array(name, given, length, f'(diagonal, {length} values)'))
-                            if len(given) else getattr(preset, field))
+        diagonals[diagonal] = (
+            tuple(check_array(name, given, length, f'(diagonal, {length} values)'))
+            if len(given) else getattr(preset, diagonal))
     tuning = UkfTuning(**diagonals)
     try:
         tuning.validate()
@@ -161,6 +181,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
     model = PamModel(params=params, valve_map=valve_map, friction=values['friction_law'],
                      force=values['force_model'], locked=values['joint_mode'] == 'locked')
     check_joint_states(values, 1.0 / model.h)    # one filter step per sample of h
+    check_realtime(values)
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(values['initial_state']),
                  nis_gate=values['nis_gate'],
                  y_range=(values['pressure_min'], values['pressure_max']),
@@ -181,4 +202,11 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> UkfConfig:
         f"{values['nis_gate'] if values['nis_gate'] > 0 else 'off'}, valid pressures "
         f"[{values['pressure_min']:g}, {values['pressure_max']:g}] Pa",
     ]
-    return UkfConfig(values=values, ukf=ukf, summary=summary)
+    v = values
+    return UkfConfig(
+        ukf=ukf, initial_command=(v['initial_command'][0], v['initial_command'][1]),
+        use_supply_pressure=v['use_supply_pressure'], frame_id=v['frame_id'],
+        hardware_id=v['hardware_id'], stale_timeout=v['stale_timeout'],
+        lost_samples_warn_ratio=v['lost_samples_warn_ratio'], joint_name=v['joint_name'],
+        joint_states_rate=v['joint_states_rate'], realtime=RealtimeRequest.from_values(v),
+        summary=tuple(summary), values=MappingProxyType(values))

@@ -77,13 +77,13 @@ class UkfNode(LinkedNode):
         super().__init__(NODE_NAME, **kwargs)
         config = parameter_values(self, PARAMETERS, check=build_config)
         # the knobs of the 1 kHz path (pam_common.realtime_knobs): this thread is the executor's
-        self.realtime = RealtimeKnobs(self.get_logger(), config.values)
+        self.realtime = RealtimeKnobs(self.get_logger(), config.realtime)
         self.realtime.apply_to_executor()
-        self.core = EstimatorCore(config.ukf, config.values['initial_command'],
-                                  config.values['use_supply_pressure'])
-        self.frame_id = config.values['frame_id']
-        self.stale_timeout = config.values['stale_timeout']
-        lost_warn_ratio = config.values['lost_samples_warn_ratio']
+        self.core = EstimatorCore(config.ukf, config.initial_command,
+                                  config.use_supply_pressure)
+        self.frame_id = config.frame_id
+        self.stale_timeout = config.stale_timeout
+        lost_warn_ratio = config.lost_samples_warn_ratio
         self.gaps = SampleGaps()
         self.logs = ThrottledLogs(self.get_logger(), LOG_THROTTLE)
         (self._log_command, self._log_reset, self._log_rejected,
@@ -95,10 +95,10 @@ class UkfNode(LinkedNode):
         self.estimate_pub = self.guard.wrap(
             self.create_publisher(JointEstimate, ESTIMATE, SAMPLE_QOS), hold=True)
         # the estimate as JointState, from the message after its guard (pam_common.joint_states)
-        rate = config.values['joint_states_rate']
+        rate = config.joint_states_rate
         self.joint_states = JointStates(
             self.guard.wrap(self.create_publisher(JointState, ESTIMATE_JOINT_STATES, SAMPLE_QOS))
-            if rate else None, JointState(), config.values['joint_name'], self.frame_id, rate,
+            if rate else None, JointState(), config.joint_name, self.frame_id, rate,
             1.0 / config.ukf.model.h)          # one filter step per sample
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, SAMPLE_QOS)
         self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
@@ -106,7 +106,7 @@ class UkfNode(LinkedNode):
             self.create_subscription(FluidPressure, SUPPLY_PRESSURE, self._on_supply, SAMPLE_QOS)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.diagnostics = DiagnosticsPublisher(self, 'UKF estimator',
-                                                config.values['hardware_id'], self._report)
+                                                config.hardware_id, self._report)
         self.diagnostics.add_check(self.guard.report)
         self.diagnostics.add_check(lambda: self.gaps.report(lost_warn_ratio))
         self.diagnostics.add_check(self.logs.report)

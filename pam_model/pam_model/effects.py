@@ -237,8 +237,8 @@ class EffectsPlant:
         p = model.params
         self.P_tank0, self.T0 = p.P_tank, p.T
         self.record = model.params_array.copy()
-        g = gas_constants(p)
-        self.m_ref = (p.A1_1 + p.A1_2) * p.P_tank * g.C_ch / g.sqrt_T
+        gas = gas_constants(p)
+        self.m_ref = (p.A1_1 + p.A1_2) * p.P_tank * gas.C_ch / gas.sqrt_T
         self.valve = ValveLag(model.valve_map, model.h, effects.valve_time_constant, u0)
         self.sensor_decay = lag_factor(model.h, effects.sensor_time_constant)
         self.gain = 1.0 + np.asarray(effects.sensor_gain_error)

@@ -1,7 +1,8 @@
-"""The RK4 step of the plant with unmodelled effects (numba): MODEL.md's step with a dead volume
-in eq. (4) and a hysteresis force added to each muscle's eq. (6) force.
+"""The plant with unmodelled effects (numba): its RK4 step, the supply tank's load, Maxwell-slip
+hysteresis.
 
-It is :func:`pam_model.physics.rk4_step` with two more inputs, built from the same helpers:
+The step is :func:`pam_model.physics.rk4_step` itself, given the effects' two terms (0 in the
+paper's model):
 
 * ``V_d`` (m^3), the dead volume of each muscle's air line: eq. (4) becomes
   dP/dt = k1 R T m / (V + V_d) - k2 (V_dot / (V + V_d)) P, with V_dot = dV/dt of the muscle alone
@@ -10,103 +11,24 @@ It is :func:`pam_model.physics.rk4_step` with two more inputs, built from the sa
   F_h,i enters eq. (8) (torque) and the friction law's F1 + F2 (eq. 10).
 
 The supply pressure P_tank and the temperature T of a step come in the record ``p`` (the caller
-writes them); the valve openings come in already lagged. With V_d = F_h1 = F_h2 = 0 it computes
-what ``physics.rk4_step`` computes. The paper's model (``physics.py``) is untouched.
+writes them); the valve openings come in already lagged.
 """
-
-import math
 
 import numpy as np
 from numba import njit
 
-from .model_choices import FrictionLaw
-from .physics import (
-    clamp_state,
-    friction_from_forces,
-    gas_constants,
-    inflow_per_area,
-    joint_torque,
-    mass_flow,
-    muscle_forces,
-    muscle_lengths,
-    muscle_volume,
-    pressure_rate,
-    subsystem_index,
-    volume_rate,
-)
-
-
-@njit(cache=True)
-def forces_with_hysteresis(psi, P1, P2, p, force_model, F_h1, F_h2):
-    """F1 + F_h1, F2 + F_h2 (N): eq. (6)-(7) plus the hysteresis forces."""
-    F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
-    return F1 + F_h1, F2 + F_h2
-
-
-@njit(cache=True)
-def friction_with_hysteresis(psi, psi_dot, P1, P2, h, p, friction_law, force_model, F_h1, F_h2):
-    """physics.friction_torque with the hysteresis forces in the muscle forces.
-
-    Returns (T_f N m, sliding flag)."""
-    if friction_law == FrictionLaw.NONE:
-        return 0.0, True
-    F1, F2 = forces_with_hysteresis(psi, P1, P2, p, force_model, F_h1, F_h2)
-    return friction_from_forces(psi, psi_dot, P1, P2, F1, F2, h, p, friction_law)
-
-
-@njit(cache=True)
-def derivative_with_effects(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, g, force_model, locked,
-                            V_d, F_h1, F_h2):
-    """(11a) with the dead volume V_d (m^3) in eq. (4) and the hysteresis forces (N) in eq. (8)."""
-    l1, l2 = muscle_lengths(psi, p)
-    V1 = muscle_volume(l1, p)
-    V2 = muscle_volume(l2, p)
-    if locked:
-        omega = 0.0
-        psi_ddot = 0.0
-    else:
-        omega = psi_dot
-        F1, F2 = forces_with_hysteresis(psi, P1, P2, p, force_model, F_h1, F_h2)
-        psi_ddot = (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
-    l_dot = p.r * math.cos(psi) * omega
-    m1 = mass_flow(P1, alpha1, p.A1_1, p.A2_1, p, g)
-    m2 = mass_flow(P2, alpha2, p.A1_2, p.A2_2, p, g)
-    P1_dot = pressure_rate(P1, V1 + V_d, volume_rate(l1, -l_dot, p), m1, p)
-    P2_dot = pressure_rate(P2, V2 + V_d, volume_rate(l2, l_dot, p), m2, p)
-    return omega, psi_ddot, P1_dot, P2_dot
+from .physics import gas_constants, inflow_per_area, rk4_step
 
 
 @njit(cache=True)
 def step_with_effects(x, alpha1, alpha2, h, p_array, friction_law, force_model, locked, V_d,
                       F_h1, F_h2, x_next):
-    """One RK4 step of length h (s) from x (4,) with openings alpha1, alpha2 in [0, 1]; writes
-    x_next (4,), returns (T_f N m, sigma 1..18). p_array: a one-row parameter record."""
-    p = p_array[0]
-    psi, psi_dot, P1, P2 = clamp_state(x[0], x[1], x[2], x[3])
-    if locked:
-        psi_dot = 0.0
-        T_f, sliding = 0.0, False
-    else:
-        T_f, sliding = friction_with_hysteresis(psi, psi_dot, P1, P2, h, p, friction_law,
-                                                force_model, F_h1, F_h2)
-    sigma = subsystem_index(sliding, P1, P2, p)
-    g = gas_constants(p)
-    k1 = derivative_with_effects(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, g, force_model,
-                                 locked, V_d, F_h1, F_h2)
-    k2 = derivative_with_effects(psi + 0.5 * h * k1[0], psi_dot + 0.5 * h * k1[1],
-                                 P1 + 0.5 * h * k1[2], P2 + 0.5 * h * k1[3], alpha1, alpha2, T_f,
-                                 p, g, force_model, locked, V_d, F_h1, F_h2)
-    k3 = derivative_with_effects(psi + 0.5 * h * k2[0], psi_dot + 0.5 * h * k2[1],
-                                 P1 + 0.5 * h * k2[2], P2 + 0.5 * h * k2[3], alpha1, alpha2, T_f,
-                                 p, g, force_model, locked, V_d, F_h1, F_h2)
-    k4 = derivative_with_effects(psi + h * k3[0], psi_dot + h * k3[1], P1 + h * k3[2],
-                                 P2 + h * k3[3], alpha1, alpha2, T_f, p, g, force_model, locked,
-                                 V_d, F_h1, F_h2)
-    w = h / 6.0
-    x_next[0] = psi + w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-    x_next[1] = psi_dot + w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-    x_next[2] = P1 + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-    x_next[3] = P2 + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+    """physics.rk4_step of length h (s) from x (4,) with openings alpha1, alpha2 in [0, 1], the
+    dead volume V_d (m^3) and the hysteresis forces F_h1, F_h2 (N); writes x_next (4,), returns
+    (T_f N m, sigma 1..18). p_array: a one-row parameter record."""
+    x_next[0], x_next[1], x_next[2], x_next[3], T_f, sigma = rk4_step(
+        x[0], x[1], x[2], x[3], alpha1, alpha2, h, p_array[0], friction_law, force_model, locked,
+        V_d, F_h1, F_h2)
     return T_f, sigma
 
 
@@ -116,9 +38,9 @@ def supply_inflow(P1, P2, alpha1, alpha2, p_array):
     pressures P1, P2 (Pa) with openings alpha1, alpha2, at the P_tank and T of the record
     p_array[0]: alpha_i A1_i m_in tilde(P_i) summed (the supply droop's load)."""
     p = p_array[0]
-    g = gas_constants(p)
-    return (0.0 + alpha1 * p.A1_1 * inflow_per_area(P1, p, g)
-            + alpha2 * p.A1_2 * inflow_per_area(P2, p, g))
+    gas = gas_constants(p)
+    return (0.0 + alpha1 * p.A1_1 * inflow_per_area(P1, p, gas)
+            + alpha2 * p.A1_2 * inflow_per_area(P2, p, gas))
 
 
 @njit(cache=True)

@@ -111,37 +111,37 @@ def gas_constants(p):
 
 
 @njit(cache=True)
-def orifice_coefficient(phi, g):
+def orifice_coefficient(phi, gas):
     """C_ch if phi <= c*, else C_un(phi) = C_un0 phi^(1/k) sqrt(1 - phi^((k-1)/k)) (sqrt(kg K/J));
     phi = downstream/upstream pressure ratio, clipped to <= 1. Uses phi^((k-1)/k) = phi/phi^(1/k).
     """
-    if phi <= g.c_star:
-        return g.C_ch
+    if phi <= gas.c_star:
+        return gas.C_ch
     phi = min(phi, 1.0)
-    root = phi ** g.inv_k
-    return g.C_un0 * root * math.sqrt(max(1.0 - phi / root, 0.0))
+    root = phi ** gas.inv_k
+    return gas.C_un0 * root * math.sqrt(max(1.0 - phi / root, 0.0))
 
 
 @njit(cache=True)
-def inflow_per_area(P, p, g):
+def inflow_per_area(P, p, gas):
     """m_in tilde (kg/(s m^2)): flow from the tank into a muscle at pressure P (Pa)."""
     if P >= p.P_tank:
         return 0.0
-    return p.P_tank / g.sqrt_T * orifice_coefficient(P / p.P_tank, g)
+    return p.P_tank / gas.sqrt_T * orifice_coefficient(P / p.P_tank, gas)
 
 
 @njit(cache=True)
-def outflow_per_area(P, p, g):
+def outflow_per_area(P, p, gas):
     """m_out tilde (kg/(s m^2)): flow from a muscle at pressure P (Pa) to the atmosphere."""
     if P <= p.P_out:
         return 0.0
-    return P / g.sqrt_T * orifice_coefficient(p.P_out / P, g)
+    return P / gas.sqrt_T * orifice_coefficient(p.P_out / P, gas)
 
 
 @njit(cache=True)
-def mass_flow(P, alpha, A1, A2, p, g):
+def mass_flow(P, alpha, A1, A2, p, gas):
     """m = A_0 (alpha m_in - (1 - alpha) m_out) (kg/s); A_0 = A1 when charging, A2 otherwise."""
-    m_tilde = alpha * inflow_per_area(P, p, g) - (1.0 - alpha) * outflow_per_area(P, p, g)
+    m_tilde = alpha * inflow_per_area(P, p, gas) - (1.0 - alpha) * outflow_per_area(P, p, gas)
     if m_tilde > 0.0:
         return A1 * m_tilde
     return A2 * m_tilde
@@ -182,12 +182,14 @@ def contraction_force(l, P, p_v1, p_v2, p_w1, p_w2, L0, force_model):
 
 
 @njit(cache=True)
-def muscle_forces(psi, P1, P2, p, force_model):
-    """F1, F2 (N) at angle psi (rad) and pressures P1, P2 (Pa abs)."""
+def muscle_forces(psi, P1, P2, p, force_model, F_h1=0.0, F_h2=0.0):
+    """F1, F2 (N) at angle psi (rad) and pressures P1, P2 (Pa abs): eq. (6)-(7), plus the
+    hysteresis forces F_h1, F_h2 (N) of a plant with unmodelled effects (0 in the paper's model:
+    then exactly eq. (6)-(7))."""
     l1, l2 = muscle_lengths(psi, p)
     F1 = contraction_force(l1, P1, p.p_v1_1, p.p_v2_1, p.p_w1_1, p.p_w2_1, p.L0, force_model)
     F2 = contraction_force(l2, P2, p.p_v1_2, p.p_v2_2, p.p_w1_2, p.p_w2_2, p.L0, force_model)
-    return F1, F2
+    return F1 + F_h1, F2 + F_h2
 
 
 @njit(cache=True)
@@ -224,16 +226,17 @@ def coulomb_level(psi_dot, P1, P2, F1, F2, p, friction_law):
 
 
 @njit(cache=True)
-def friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model):
+def friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model, F_h1=0.0, F_h2=0.0):
     """Kikuuwe's implicit-Euler friction, once per step of length h (s).
 
     Returns (T_f in N m, sliding flag). T0 = tau - k_s psi; omega* = psi_dot + (h/J) T0;
     sliding when |omega*| > (h/J) T_c: T_f = (T_c sgn(omega*) + c omega*) / (1 + (h/J) c);
     sticking otherwise: T_f = (J/h) omega*. Every law of Table III goes through this form.
+    F_h1, F_h2 (N): hysteresis forces in the muscle forces (muscle_forces).
     """
     if friction_law == FrictionLaw.NONE:
         return 0.0, True
-    F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
+    F1, F2 = muscle_forces(psi, P1, P2, p, force_model, F_h1, F_h2)
     return friction_from_forces(psi, psi_dot, P1, P2, F1, F2, h, p, friction_law)
 
 
@@ -253,10 +256,15 @@ def friction_from_forces(psi, psi_dot, P1, P2, F1, F2, h, p, friction_law):
 # --- state equation (11a), RK4 ------------------------------------------------------------------
 
 @njit(cache=True)
-def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, g, force_model, locked):
+def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, gas, force_model, locked,
+                     V_d=0.0, F_h1=0.0, F_h2=0.0):
     """f(x) of (11a) with the friction torque T_f held: (psi_dot, psi_ddot, P1_dot, P2_dot).
 
-    Units: rad/s, rad/s^2, Pa/s, Pa/s; g = gas_constants(p). With locked=True the joint is held.
+    Units: rad/s, rad/s^2, Pa/s, Pa/s; gas = gas_constants(p). With locked=True the joint is held.
+    A plant with unmodelled effects adds V_d (m^3), the dead volume of each muscle's air line, to
+    V in eq. (4) (V_dot stays the muscle's: the line's volume does not change), and the
+    hysteresis forces F_h1, F_h2 (N) to eq. (6)-(7) (muscle_forces); with the defaults (0) this
+    is exactly the paper's (11a).
     """
     l1, l2 = muscle_lengths(psi, p)
     V1 = muscle_volume(l1, p)
@@ -266,13 +274,13 @@ def state_derivative(psi, psi_dot, P1, P2, alpha1, alpha2, T_f, p, g, force_mode
         psi_ddot = 0.0
     else:
         omega = psi_dot
-        F1, F2 = muscle_forces(psi, P1, P2, p, force_model)
+        F1, F2 = muscle_forces(psi, P1, P2, p, force_model, F_h1, F_h2)
         psi_ddot = (joint_torque(psi, F1, F2, p) - T_f - p.k_s * psi) / p.J
     l_dot = p.r * math.cos(psi) * omega          # l2_dot = +l_dot, l1_dot = -l_dot
-    m1 = mass_flow(P1, alpha1, p.A1_1, p.A2_1, p, g)
-    m2 = mass_flow(P2, alpha2, p.A1_2, p.A2_2, p, g)
-    P1_dot = pressure_rate(P1, V1, volume_rate(l1, -l_dot, p), m1, p)
-    P2_dot = pressure_rate(P2, V2, volume_rate(l2, l_dot, p), m2, p)
+    m1 = mass_flow(P1, alpha1, p.A1_1, p.A2_1, p, gas)
+    m2 = mass_flow(P2, alpha2, p.A1_2, p.A2_2, p, gas)
+    P1_dot = pressure_rate(P1, V1 + V_d, volume_rate(l1, -l_dot, p), m1, p)
+    P2_dot = pressure_rate(P2, V2 + V_d, volume_rate(l2, l_dot, p), m2, p)
     return omega, psi_ddot, P1_dot, P2_dot
 
 
@@ -283,20 +291,23 @@ def subsystem_index(sliding, P1, P2, p):
 
 
 @njit(cache=True)
-def rk4_step(psi, psi_dot, P1, P2, alpha1, alpha2, h, p, friction_law, force_model, locked):
+def rk4_step(psi, psi_dot, P1, P2, alpha1, alpha2, h, p, friction_law, force_model, locked,
+             V_d=0.0, F_h1=0.0, F_h2=0.0):
     """One classic RK4 step of length h (s) with T_f computed at the start and held.
 
     Returns (psi, psi_dot, P1, P2) at k+1, the friction torque T_f (N m) used, and sigma (1..18)
-    of the state at the start of the step.
+    of the state at the start of the step. V_d (m^3), F_h1, F_h2 (N): a plant's dead volume and
+    hysteresis forces, held over the step (state_derivative; 0 in the paper's model).
     """
     psi, psi_dot, P1, P2 = clamp_state(psi, psi_dot, P1, P2)
     if locked:
         psi_dot = 0.0
         T_f, sliding = 0.0, False
     else:
-        T_f, sliding = friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model)
+        T_f, sliding = friction_torque(psi, psi_dot, P1, P2, h, p, friction_law, force_model,
+                                       F_h1, F_h2)
     sigma = subsystem_index(sliding, P1, P2, p)
-    a = (alpha1, alpha2, T_f, p, gas_constants(p), force_model, locked)
+    a = (alpha1, alpha2, T_f, p, gas_constants(p), force_model, locked, V_d, F_h1, F_h2)
     k1 = state_derivative(psi, psi_dot, P1, P2, *a)
     k2 = state_derivative(psi + 0.5 * h * k1[0], psi_dot + 0.5 * h * k1[1],
                           P1 + 0.5 * h * k1[2], P2 + 0.5 * h * k1[3], *a)

@@ -102,8 +102,8 @@ def load_valve_map(name_or_path: str | Path = 'default') -> ValveMap:
 
 def net_flow_per_area(P: float, alpha: float, p: Parameters) -> float:
     """alpha m_in(P) - (1 - alpha) m_out(P) (kg/(s m^2)) at pressure P (Pa abs)."""
-    g = gas_constants(p)
-    return alpha * inflow_per_area(P, p, g) - (1.0 - alpha) * outflow_per_area(P, p, g)
+    gas = gas_constants(p)
+    return alpha * inflow_per_area(P, p, gas) - (1.0 - alpha) * outflow_per_area(P, p, gas)
 
 
 def steady_pressure(alpha: float, p: Parameters) -> float:
@@ -123,15 +123,15 @@ def opening_for_steady_pressure(P_bar, p: Parameters):
     """
     P_bar = np.atleast_1d(np.asarray(P_bar, dtype=float))
     alpha = np.empty_like(P_bar)
-    g = gas_constants(p)
+    gas = gas_constants(p)
     for j, P in enumerate(P_bar):
         if P <= p.P_out:
             alpha[j] = 0.0
         elif P >= p.P_tank:
             alpha[j] = 1.0
         else:
-            m_out = outflow_per_area(P, p, g)
-            alpha[j] = m_out / (inflow_per_area(P, p, g) + m_out)
+            m_out = outflow_per_area(P, p, gas)
+            alpha[j] = m_out / (inflow_per_area(P, p, gas) + m_out)
     return alpha
 
 

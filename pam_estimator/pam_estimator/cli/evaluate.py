@@ -49,8 +49,10 @@ def parse_args(argv=None) -> argparse.Namespace:
                       help='treat the run(s) as free-joint (angle evaluated)')
     parser.add_argument('--params', default='default', metavar='SET|FILE',
                         help="parameters the estimator assumes (default: %(default)s)")
-    parser.add_argument('--kappa', default='default', metavar='FILE',
-                        help='valve map table CSV (default: shipped table)')
+    parser.add_argument('--valve-map', '--kappa', dest='valve_map', default='default',
+                        metavar='FILE',
+                        help='valve map table CSV (default: shipped table); --kappa is the '
+                             'former name')
     parser.add_argument('--extensions', default='', metavar='FILE',
                         help='extensions.yaml of the estimators\' model (pam-identify writes it; '
                              'docs/model_extensions.md): valve lag, dead volume, force '
@@ -99,7 +101,7 @@ def load_run_and_supply(path, locked, use_supply: bool):
 
 def body(argv=None) -> int:
     args = parse_args(argv)
-    model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.kappa))
+    model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.valve_map))
     tuning = TUNINGS[args.tuning]
     extensions = load_extensions(args.extensions)
     bias_states = DEFAULT_BIAS_STATES if args.bias_states else None

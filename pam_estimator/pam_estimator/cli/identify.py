@@ -29,7 +29,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                     'Prints each value with its uncertainty and the residuals, and '
                     'writes OUTPUT/params.yaml, OUTPUT/kappa.csv, OUTPUT/extensions.yaml and '
                     'OUTPUT/report.txt, which ukf_node (model_parameters, valve_map, '
-                    'model_extensions) and pam-evaluate (--params, --kappa, --extensions) '
+                    'model_extensions) and pam-evaluate (--params, --valve-map, --extensions) '
                     'load. Runs: bags recorded while profile_player played profile:='
                     'calibration_locked (joint locked, one bag per lock angle) and '
                     'calibration_free, or made by pam-calibration-bags on the simulator.')
@@ -41,19 +41,22 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--prior', default='default', metavar='SET|FILE',
                         help='parameter set to start from; also supplies what is not identified '
                              '(geometry, gas, J, k_s, c_s, k1) (default: %(default)s)')
-    parser.add_argument('--kappa-prior', default='default', metavar='FILE',
-                        help='valve map to start from (default: the shipped table)')
+    parser.add_argument('--prior-valve-map', '--kappa-prior', dest='prior_valve_map',
+                        default='default', metavar='FILE',
+                        help='valve map to start from (default: the shipped table); '
+                             '--kappa-prior is the former name')
     parser.add_argument('--partial', action='store_true',
                         help='when the runs cannot identify some parameters, keep their prior '
                              'values (listed in the report) instead of failing')
     parser.add_argument('--no-extensions', dest='extensions', action='store_false',
                         help='identify the paper\'s model only: no sensor offsets, hysteresis or '
                              'dead volume (extensions.yaml is then an empty mapping)')
-    parser.add_argument('--truth-mismatch', metavar='NAME|FILE',
-                        help='simulated runs only: the plant was --prior with this mismatch '
-                             'scenario (as pam-calibration-bags --mismatch made it); the report '
-                             'then shows the true values (and the scenario\'s effects) and the '
-                             'errors')
+    parser.add_argument('--truth-scenario', '--truth-mismatch', dest='truth_scenario',
+                        metavar='NAME|FILE',
+                        help='simulated runs only: the plant was --prior with this scenario (as '
+                             'pam-calibration-bags --scenario made it); the report then shows '
+                             'the true values (and the scenario\'s effects) and the errors; '
+                             '--truth-mismatch is the former name')
     parser.add_argument('--name', default='identified', help='name written into params.yaml')
     return parser.parse_args(argv)
 
@@ -64,7 +67,7 @@ def body(argv=None) -> int:
         raise ValueError(f'{args.output}: already exists; not overwriting it (choose another '
                          'output)')
     prior = load_parameters(args.prior)
-    prior_map = load_valve_map(args.kappa_prior)
+    prior_map = load_valve_map(args.prior_valve_map)
     records = []
     for path in args.runs:
         record = load_record(path)
@@ -78,7 +81,7 @@ def body(argv=None) -> int:
                          log=lambda line: print(line, flush=True), extensions=args.extensions)
     except IdentificationError as exc:
         raise ValueError(f'{exc}\nnothing written') from exc
-    scenario = load_scenario(args.truth_mismatch) if args.truth_mismatch else None
+    scenario = load_scenario(args.truth_scenario) if args.truth_scenario else None
     truth = scenario.apply(prior) if scenario is not None else None
     report = format_report(ident, prior, truth, prior_map if truth is not None else None,
                            scenario.effects if scenario is not None else None)
@@ -90,7 +93,7 @@ def body(argv=None) -> int:
           + ('' if ident.complete else ' (PARTIAL: see "NOT identified" above)'))
     print(f'use: ros2 run pam_estimator ukf_node --ros-args -p model_parameters:={files["params"]}'
           f' -p valve_map:={files["kappa"]} -p model_extensions:={files["extensions"]}')
-    print(f'     pam-evaluate --params {files["params"]} --kappa {files["kappa"]} '
+    print(f'     pam-evaluate --params {files["params"]} --valve-map {files["kappa"]} '
           f'--extensions {files["extensions"]} VALIDATION_BAG')
     return 0
 

@@ -21,17 +21,22 @@ def run_cli(main_body, argv=None) -> int:
 
 
 def add_model_arguments(parser: argparse.ArgumentParser, laws: bool = True) -> None:
-    """--params, --mismatch, --kappa and (laws=True) --friction, --force, --locked."""
+    """--params, --scenario (alias --mismatch), --valve-map (alias --kappa) and (laws=True)
+    --friction, --force, --locked (docs/glossary.md: one name per concept)."""
     from ..model_choices import ForceModel, FrictionLaw
     parser.add_argument('--params', default='default', metavar='SET|FILE',
                         help="Table II set: 'default' (corrected), 'printed', or a YAML file "
                              "(default: %(default)s)")
-    parser.add_argument('--mismatch', default='', metavar='NAME|FILE',
-                        help="plant mismatch scenario applied to --params: 'mild', 'strong', "
+    parser.add_argument('--scenario', '--mismatch', dest='scenario', default='',
+                        metavar='NAME|FILE',
+                        help="the plant's scenario, applied to --params: 'mild', 'strong', "
                              "'realistic', 'harsh' (with unmodelled effects) or a YAML file; its "
-                             "sensor model and effects are used too (default: none)")
-    parser.add_argument('--kappa', default='default', metavar='FILE',
-                        help='valve map table CSV (voltage_V,alpha) (default: shipped table)')
+                             "sensor model and effects are used too (default: none). --mismatch "
+                             "is the former name")
+    parser.add_argument('--valve-map', '--kappa', dest='valve_map', default='default',
+                        metavar='FILE',
+                        help='valve map table CSV (voltage_V,alpha) (default: shipped table). '
+                             '--kappa is the former name')
     if not laws:
         parser.set_defaults(friction=str(FrictionLaw.PROPOSED), force=str(ForceModel.PROPOSED),
                             locked=False)
@@ -52,7 +57,7 @@ def build_model(args):
     from ..parameters import load_parameters
     from ..valve_map import load_valve_map
     params = load_parameters(args.params)
-    scenario = load_scenario(args.mismatch) if args.mismatch else NOMINAL
-    model = PamModel(params=scenario.apply(params), valve_map=load_valve_map(args.kappa),
+    scenario = load_scenario(args.scenario) if args.scenario else NOMINAL
+    model = PamModel(params=scenario.apply(params), valve_map=load_valve_map(args.valve_map),
                      friction=args.friction, force=args.force, locked=args.locked)
     return model, scenario

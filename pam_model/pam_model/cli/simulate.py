@@ -36,9 +36,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                         metavar=('PSI', 'PSI_DOT', 'P1', 'P2'),
                         help='initial state in rad, rad/s, Pa, Pa (default: 0 0 450e3 450e3)')
     parser.add_argument('--noise-std', type=float, metavar='PA',
-                        help='pressure sensor noise std in Pa (default: from --mismatch, else 0)')
+                        help='pressure sensor noise std in Pa (default: from --scenario, else 0)')
     parser.add_argument('--bits', type=int, metavar='N',
-                        help='pressure ADC bits over 0-1 MPa (default: from --mismatch, else none)')
+                        help='pressure ADC bits over 0-1 MPa (default: from --scenario, else none)')
     add_model_arguments(parser)
     return parser.parse_args(argv)
 

@@ -45,7 +45,7 @@ def pressure_trajectory_with_volume(P0, alpha, l, l_dot, dt, p, A1, A2, V_d, out
     """out[k] (Pa): one muscle's pressure from P0 (Pa) under openings alpha (N,), length l (N,) m
     and its rate l_dot (N,) m/s held over each step dt (N-1,) s; valve areas A1, A2 (m^2); a dead
     volume V_d (m^3) in series (eq. (4) with V + V_d, V_dot of the muscle alone)."""
-    g = gas_constants(p)
+    gas = gas_constants(p)
     P = P0
     out[0] = P
     for k in range(dt.shape[0]):
@@ -53,13 +53,13 @@ def pressure_trajectory_with_volume(P0, alpha, l, l_dot, dt, p, A1, A2, V_d, out
         V_dot = volume_rate(l[k], l_dot[k], p)
         h = dt[k]
         a = alpha[k]
-        k1 = pressure_rate(P, V, V_dot, mass_flow(P, a, A1, A2, p, g), p)
+        k1 = pressure_rate(P, V, V_dot, mass_flow(P, a, A1, A2, p, gas), p)
         P2 = P + 0.5 * h * k1
-        k2 = pressure_rate(P2, V, V_dot, mass_flow(P2, a, A1, A2, p, g), p)
+        k2 = pressure_rate(P2, V, V_dot, mass_flow(P2, a, A1, A2, p, gas), p)
         P3 = P + 0.5 * h * k2
-        k3 = pressure_rate(P3, V, V_dot, mass_flow(P3, a, A1, A2, p, g), p)
+        k3 = pressure_rate(P3, V, V_dot, mass_flow(P3, a, A1, A2, p, gas), p)
         P4 = P + h * k3
-        k4 = pressure_rate(P4, V, V_dot, mass_flow(P4, a, A1, A2, p, g), p)
+        k4 = pressure_rate(P4, V, V_dot, mass_flow(P4, a, A1, A2, p, gas), p)
         P = clip(P + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), P_MIN, P_MAX)
         out[k + 1] = P
     return out
