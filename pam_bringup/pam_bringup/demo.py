@@ -99,7 +99,7 @@ def parse_args(argv):
                'make demo: --duration 30).')
     parser.add_argument('--scenario', default=DEFAULT_SCENARIO, metavar='NAME|FILE',
                         help="the simulated rig's mismatch scenario: 'mild', 'strong', "
-                             "'realistic', 'harsh' or a scenario YAML (default "
+                             "'realistic', 'harsh', 'other_forms' or a scenario YAML (default "
                              f'{DEFAULT_SCENARIO})')
     parser.add_argument('--campaign', choices=sorted(CAMPAIGNS), default='full',
                         help="the calibration campaign: 'full' (3 lock angles, 10 s holds, 60 s "

@@ -334,9 +334,8 @@ def describe(config: SimConfig) -> list[str]:
     lines.append(timing)
     lines.append(f'sensor: {config.sensor_source}')
     if v['publish_supply_pressure']:
-        droop = config.scenario is not None and (config.scenario.effects.supply_droop > 0.0
-                                                 or config.scenario.effects.supply_ripple > 0.0)
+        droop = config.scenario is not None and config.scenario.effects.supply_varies
         lines.append(f'supply pressure: published, P_tank {config.parameters.P_tank:g} Pa abs '
-                     + ("with the scenario's droop/ripple" if droop else '(constant)')
+                     + ("with the scenario's droop/ripple/tank" if droop else '(constant)')
                      + ' through the same sensor model (its own noise draws)')
     return lines

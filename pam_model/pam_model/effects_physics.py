@@ -1,5 +1,6 @@
 """The plant with unmodelled effects (numba): its RK4 step, the supply tank's load, Maxwell-slip
-hysteresis.
+and Bouc-Wen hysteresis, the second-order valve spool, the finite supply tank with its compressor
+(equations: pam_model.effects' docstring).
 
 The step is :func:`pam_model.physics.rk4_step` itself, given the effects' two terms (0 in the
 paper's model):
@@ -90,3 +91,61 @@ def maxwell_slip_update(s, P, slip, stiffness, p_out, p_band, anchor, force):
             anchor[i, j] = s[i] - f / stiffness[j]
             element[j] = f
         force[i] = ordered_sum(element, n)
+
+
+@njit(cache=True)
+def bouc_wen_update(drive, drive_before, z, band, P, p_out, p_band, force):
+    """One sample of the Bouc-Wen hysteresis of each muscle i (pam_model.effects.BoucWen):
+    z_i (-) moves with the driver's increment dx = drive[i] - drive_before[i] (driver already
+    divided by its travel, -) by dz = dx - (|dx| z + dx |z|) / 2, solved exactly: linear up to
+    z = 0 while z opposes dx, then z = sgn(dx) (1 - (1 - |z|) e^(-|dx|)). force[i] = band
+    c(P_i) z_i (N), c(P) = max(P - P_out, 0) / (p_band - P_out). z and force updated in place;
+    drive_before takes drive."""
+    for i in range(z.size):
+        dx = drive[i] - drive_before[i]
+        drive_before[i] = drive[i]
+        if dx != 0.0:
+            sign = 1.0 if dx > 0.0 else -1.0
+            w = sign * z[i]                  # z along the motion
+            step = abs(dx)
+            if w < 0.0:                      # reversal: dz/dx = 1 until z = 0
+                if step <= -w:
+                    w += step
+                    step = 0.0
+                else:
+                    step += w
+                    w = 0.0
+            if step > 0.0:
+                w = 1.0 - (1.0 - w) * np.exp(-step)
+            z[i] = sign * w
+        force[i] = band * (max(P[i] - p_out, 0.0) / (p_band - p_out)) * z[i]
+
+
+@njit(cache=True)
+def spool_second_order(u1, u2, state, transition, mean):
+    """One step of the second-order valve spools (pam_model.effects.SecondOrderValve) with the
+    voltages u1, u2 (V) held: state (2, 2) rows [u_f V, du_f/dt V/s] per valve, advanced in place
+    by the step's exact transition (3, 3): rows u_f, du_f/dt and (integral of u_f over the step)
+    / h, each a combination of the columns u_f, du_f/dt, u. mean (2,) gets each spool's mean
+    voltage over the step (V)."""
+    for i in range(2):
+        u = u1 if i == 0 else u2
+        position, rate = state[i, 0], state[i, 1]
+        state[i, 0] = transition[0, 0] * position + transition[0, 1] * rate + transition[0, 2] * u
+        state[i, 1] = transition[1, 0] * position + transition[1, 1] * rate + transition[1, 2] * u
+        mean[i] = transition[2, 0] * position + transition[2, 1] * rate + transition[2, 2] * u
+
+
+@njit(cache=True)
+def tank_update(P_t, running, inflow, compressor_flow, h, R, T, V_t, cut_in, cut_out):
+    """One step of the finite supply tank (pam_model.effects.SupplyTank): isothermal,
+    P_t + h (R T / V_t) (m_c on - m_in) (Pa abs) with the valves' inflow m_in (kg/s) and the
+    compressor's m_c (kg/s) while it runs; then the pressure switch: on at P_t <= cut_in, off at
+    P_t >= cut_out (Pa abs), unchanged between. Returns (P_t Pa, running)."""
+    supplied = compressor_flow if running else 0.0
+    P_next = P_t + h * R * T / V_t * (supplied - inflow)
+    if P_next <= cut_in:
+        running = True
+    elif P_next >= cut_out:
+        running = False
+    return P_next, running

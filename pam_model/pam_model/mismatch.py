@@ -1,7 +1,7 @@
 """Plant mismatch scenarios: a plant parameter set that differs from the nominal one by factors and
 offsets, plus the plant's pressure sensor model and its unmodelled effects (pam_model.effects, all
-off unless an `effects:` section sets them), read from YAML (see data/mismatch_mild.yaml and
-data/mismatch_realistic.yaml).
+off unless an `effects:` section sets them), read from YAML (see data/mismatch_mild.yaml,
+data/mismatch_realistic.yaml and data/mismatch_other_forms.yaml, whose effects have other forms).
 """
 
 from __future__ import annotations
@@ -24,7 +24,8 @@ from .parameters import (
 from .sensor import PressureSensor
 
 BUILTIN_SCENARIOS = {'mild': 'mismatch_mild.yaml', 'strong': 'mismatch_strong.yaml',
-                     'realistic': 'mismatch_realistic.yaml', 'harsh': 'mismatch_harsh.yaml'}
+                     'realistic': 'mismatch_realistic.yaml', 'harsh': 'mismatch_harsh.yaml',
+                     'other_forms': 'mismatch_other_forms.yaml'}
 
 
 @dataclass(frozen=True)

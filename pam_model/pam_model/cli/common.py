@@ -30,9 +30,9 @@ def add_model_arguments(parser: argparse.ArgumentParser, laws: bool = True) -> N
     parser.add_argument('--scenario', '--mismatch', dest='scenario', default='',
                         metavar='NAME|FILE',
                         help="the plant's scenario, applied to --params: 'mild', 'strong', "
-                             "'realistic', 'harsh' (with unmodelled effects) or a YAML file; its "
-                             "sensor model and effects are used too (default: none). --mismatch "
-                             "is the former name")
+                             "'realistic', 'harsh', 'other_forms' (with unmodelled effects) or a "
+                             "YAML file; its sensor model and effects are used too (default: "
+                             "none). --mismatch is the former name")
     parser.add_argument('--valve-map', '--kappa', dest='valve_map', default='default',
                         metavar='FILE',
                         help='valve map table CSV (voltage_V,alpha) (default: shipped table). '
