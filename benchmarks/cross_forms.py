@@ -3,7 +3,7 @@
 project ships with unmodelled effects (`realistic`: the forms of the estimator's extensions;
 `other_forms`: other laws of the same physics, docs/realistic_rig.md).
 
-Per family, with the installed tools as a lab runs them:
+Per family, with the installed tools as a lab runs them (realistic_targets.identified_model):
   1. pam-calibration-bags: the calibration campaign exactly as it plans it (its defaults), on the
      simulated plant of that scenario (parameter mismatch, sensor, unmodelled effects), seed
      --campaign-seed;
@@ -22,14 +22,11 @@ range, the worst over the seeds; then the WORST cell, over all forms and after i
 
 import argparse
 import shutil
-import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
-from pam_estimator.calibration_runs import load_identified
 from pam_estimator.evaluation import measured_and_estimated, run_ukf, start_state
 from pam_model.metrics import metrics
 from pam_model.mismatch import load_scenario
@@ -40,35 +37,11 @@ from pam_model.profiles import validation_profile
 from pam_model.rest import REST_STATE
 from pam_model.simulate import simulate
 from pam_model.valve_map import load_valve_map
+from realistic_targets import identified_model
 
 FAMILIES = 'realistic,other_forms'
 NOMINAL, PAPER, EXTENDED = 'nominal model', "identified, paper's model", 'identified + extensions'
 FORMS = (NOMINAL, PAPER, EXTENDED)
-
-
-def tool(name: str) -> str:
-    path = Path(sys.executable).parent / name
-    return str(path) if path.exists() else name
-
-
-def run(cmd, log: Path):
-    print('$ ' + ' '.join(str(c) for c in cmd), flush=True)
-    with open(log, 'w') as out:
-        subprocess.run([str(c) for c in cmd], check=True, stdout=out, stderr=subprocess.STDOUT)
-
-
-def identify_family(name: str, out: Path, campaign_seed: int):
-    """pam-calibration-bags (as it plans the campaign) then pam-identify --partial; the
-    identified (PamModel, extensions)."""
-    bags, ident = out / 'bags', out / 'identified'
-    run([tool('pam-calibration-bags'), bags, '--scenario', name, '--seed', campaign_seed],
-        out / 'calibration.log')
-    run([tool('pam-identify'), *sorted(bags.glob('locked_*')), bags / 'free', '-o', ident,
-         '--partial', '--truth-scenario', name], out / 'identify.log')
-    report = (ident / 'report.txt').read_text()
-    kept = [line for line in report.splitlines() if line.startswith('extensions kept')]
-    print('  ' + (kept[0] if kept else 'extensions: none kept'), flush=True)
-    return load_identified(ident)
 
 
 def estimators(nominal: PamModel, identified) -> dict:
@@ -157,7 +130,7 @@ def main():
             out = work / Path(name).stem
             out.mkdir(parents=True, exist_ok=True)
             print(f'\n== {name}: {scenario.effects.describe()}', flush=True)
-            identified = identify_family(name, out, args.campaign_seed)
+            identified = identified_model(out, name, args.campaign_seed)
             plant = PamModel(params=scenario.apply(nominal.params), valve_map=nominal.valve_map)
             table[name] = family_cells(scenario, plant, estimators(nominal, identified), seeds,
                                        args.duration)

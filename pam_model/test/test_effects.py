@@ -254,8 +254,9 @@ def test_realistic_and_harsh_carry_exactly_the_issues_numbers():
     assert realistic.effects.active and not mild.effects.active
 
 
-def test_realistic_plant_runs_finite_in_the_batch_simulator():
-    scenario = load_scenario('realistic')
+@pytest.mark.parametrize('name', ['realistic', 'other_forms'])
+def test_realistic_plant_runs_finite_in_the_batch_simulator(name):
+    scenario = load_scenario(name)
     model = PamModel(params=scenario.apply(load_parameters()))
     run = simulate(model, inputs(2000), X0, scenario.sensor, seed=1, effects=scenario.effects)
     assert np.all(np.isfinite(run.table()))
@@ -274,6 +275,22 @@ def test_realistic_plant_runs_finite_in_the_batch_simulator():
     ({'hysteresis_travel': 0.0}, ['effects', 'hysteresis_travel']),
     ({'temperature_drift_time': -1.0}, ['effects', 'temperature_drift_time']),
     ({'supply_droop': 'lots'}, ['effects', 'supply_droop', 'number']),
+    # the second family's keys (test_effects_other_forms.py)
+    ({'valve_delay': -0.001}, ['valve_delay', '>= 0']),
+    ({'valve_natural_frequency': float('nan')}, ['valve_natural_frequency']),
+    ({'valve_damping': 0.0}, ['valve_damping', '> 0']),
+    ({'valve_time_constant': 0.005, 'valve_natural_frequency': 30.0},
+     ['valve_time_constant', 'valve_natural_frequency', 'not both']),
+    ({'bouc_wen_band': 'lots'}, ['bouc_wen_band', 'number']),
+    ({'bouc_wen_band': float('inf')}, ['bouc_wen_band', 'finite']),
+    ({'bouc_wen_driver': 'force'}, ['bouc_wen_driver', 'length, pressure']),
+    ({'bouc_wen_length_travel': 0.0}, ['bouc_wen_length_travel', '> 0']),
+    ({'bouc_wen_pressure_travel': -1.0}, ['bouc_wen_pressure_travel', '> 0']),
+    ({'tank_volume': -1e-3}, ['tank_volume', '>= 0']),
+    ({'compressor_flow': 2.5e-4}, ['compressor_flow', 'tank_volume > 0']),
+    ({'compressor_band': 0.0}, ['compressor_band', '> 0']),
+    ({'sensor_filter_order': 5}, ['sensor_filter_order', '1..4']),
+    ({'sensor_filter_order': 1.5}, ['sensor_filter_order', 'integer']),
 ])
 def test_bad_effects_are_refused_in_one_line_naming_the_key(tmp_path, effects, words):
     path = tmp_path / 'bad.yaml'

@@ -1,13 +1,13 @@
 """The second family of unmodelled effects (pam_model/effects.py: Bouc-Wen hysteresis, second-order
 valve spool, transport delay, finite supply tank with a compressor, sensor filter order): each
-kernel against a plain python/numpy form of its equation, the keys' validation, every new key at
-0 leaving the plant what it was, and the `other_forms` scenario."""
+kernel against a plain python/numpy form of its equation, every new key at 0 leaving the plant
+what it was, and the `other_forms` scenario. The new keys' validation: test_effects.py's
+test_bad_effects_are_refused_in_one_line_naming_the_key."""
 
 import math
 
 import numpy as np
 import pytest
-import yaml
 
 from pam_model.effects import (
     BoucWen,
@@ -21,7 +21,7 @@ from pam_model.effects import (
 from pam_model.effects_physics import bouc_wen_update, spool_second_order, tank_update
 from pam_model.mismatch import BUILTIN_SCENARIOS, load_scenario
 from pam_model.model import PamModel
-from pam_model.parameters import ParameterError, load_parameters
+from pam_model.parameters import load_parameters
 from pam_model.physics import valve_opening
 from pam_model.rig import SimulatedRig
 from pam_model.sensor import PressureSensor
@@ -285,36 +285,6 @@ def test_sensor_filter_is_n_first_order_stages_in_cascade(order):
         np.testing.assert_array_equal(plant.P_filtered, stages[-1])
 
 
-# --- validation -----------------------------------------------------------------------------------
-
-@pytest.mark.parametrize('effects, words', [
-    ({'valve_delay': -0.001}, ['valve_delay', '>= 0']),
-    ({'valve_natural_frequency': float('nan')}, ['valve_natural_frequency']),
-    ({'valve_damping': 0.0}, ['valve_damping', '> 0']),
-    ({'valve_time_constant': 0.005, 'valve_natural_frequency': 30.0},
-     ['valve_time_constant', 'valve_natural_frequency', 'not both']),
-    ({'bouc_wen_band': 'lots'}, ['bouc_wen_band', 'number']),
-    ({'bouc_wen_band': float('inf')}, ['bouc_wen_band', 'finite']),
-    ({'bouc_wen_driver': 'force'}, ['bouc_wen_driver', 'length, pressure']),
-    ({'bouc_wen_length_travel': 0.0}, ['bouc_wen_length_travel', '> 0']),
-    ({'bouc_wen_pressure_travel': -1.0}, ['bouc_wen_pressure_travel', '> 0']),
-    ({'tank_volume': -1e-3}, ['tank_volume', '>= 0']),
-    ({'compressor_flow': 2.5e-4}, ['compressor_flow', 'tank_volume > 0']),
-    ({'compressor_band': 0.0}, ['compressor_band', '> 0']),
-    ({'sensor_filter_order': 5}, ['sensor_filter_order', '1..4']),
-    ({'sensor_filter_order': 1.5}, ['sensor_filter_order', 'integer']),
-])
-def test_bad_new_keys_are_refused_in_one_line_naming_the_key(tmp_path, effects, words):
-    path = tmp_path / 'bad.yaml'
-    path.write_text(yaml.safe_dump({'name': 'bad', 'effects': effects}))
-    with pytest.raises(ParameterError) as info:
-        load_scenario(path)
-    text = str(info.value)
-    assert '\n' not in text and str(path) in text and 'effects' in text
-    for word in words:
-        assert word in text, text
-
-
 # --- the `other_forms` scenario -------------------------------------------------------------------
 
 def test_other_forms_is_mild_plus_effects_of_other_forms():
@@ -339,11 +309,3 @@ def test_other_forms_is_mild_plus_effects_of_other_forms():
                  'length (1 mm)', 'x2'):
         assert word in text, text
 
-
-def test_other_forms_plant_runs_finite_and_its_effects_act():
-    scenario = load_scenario('other_forms')
-    model = PamModel(params=scenario.apply(load_parameters()))
-    run = simulate(model, inputs(2000), X0, scenario.sensor, seed=1, effects=scenario.effects)
-    assert np.all(np.isfinite(run.table()))
-    plain = simulate(model, inputs(2000), X0, scenario.sensor, seed=1)
-    assert np.max(np.abs(run.x[:, 2:] - plain.x[:, 2:])) > 1.0e3
