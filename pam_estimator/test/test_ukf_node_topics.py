@@ -34,16 +34,23 @@ def test_estimate_follows_the_simulated_rig(node_process, probe):
         time.sleep(0.05)
     time.sleep(0.3)
     assert sim.alive() and ukf.alive()
-    common = sorted(set(truth) & set(estimates))
-    assert len(common) > 2500, 'estimates must carry the stamps of the pressure samples'
+    seen, estimated = truth.copy(), estimates.copy()    # the probe's thread adds to them
+    common = sorted(set(seen) & set(estimated))
+    # every estimate carries the stamp of a pressure sample of the rig; how many there are
+    # depends on the machine (a loaded one misses rig samples: none is estimated, none published
+    # as truth), so the test asks for enough, not for 1 kHz
+    window = [k for k in estimated if k <= max(seen)]
+    assert len(common) >= 0.99 * len(window), (
+        f'{len(window) - len(common)} of {len(window)} estimates carry no sample stamp')
+    assert len(common) > 1500, f'only {len(common)} estimated samples in 3 s and more'
     last = [k for k in common if k >= common[-1] - 1_000_000_000]
-    errors = np.array([estimates[k].angle - truth[k].angle for k in last])
-    assert np.degrees(truth[last[-1]].angle) > 5.0
+    errors = np.array([estimated[k].angle - seen[k].angle for k in last])
+    assert np.degrees(seen[last[-1]].angle) > 5.0
     assert np.max(np.abs(errors)) < ANGLE_TOLERANCE
-    sample = estimates[last[-1]]
+    sample = estimated[last[-1]]
     assert len(sample.covariance) == 16 and all(math.isfinite(v) for v in sample.covariance)
     assert sample.torque_variance >= 0.0 and 1 <= sample.subsystem <= 18
-    assert abs(sample.torque - truth[last[-1]].torque) < 0.05
+    assert abs(sample.torque - seen[last[-1]].torque) < 0.05
 
 
 def publish_pressures(pub, stamp_s, p1, p2):
