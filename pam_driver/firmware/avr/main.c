@@ -1,15 +1,19 @@
 /* The reference DAQ board on an ATmega2560 (Arduino Mega 2560, 16 MHz): the thin hardware layer
  * under the portable core (core/board.c). Pins and parts: WIRING.md.
  *
- *   Timer1 CTC 1 kHz  ISR: reads the 4 ADC channels (MCP3208 on SPI, 2 MHz), the encoder count and
- *                     the e-stop pin into a snapshot, flags a tick (overrun counted if the previous
- *                     one was not consumed);
+ *   Timer1 CTC 1 kHz  compare A ISR: reads the 4 ADC channels (MCP3208 on SPI, 2 MHz), the
+ *                     encoder count and the e-stop pin into a snapshot, flags a tick (overrun
+ *                     counted if the previous one was not consumed); compare B (0.8 ms): the
+ *                     moment to send a heartbeat due (its bytes then share two tick periods);
  *   INT4/INT5         encoder A/B, any edge: x4 quadrature decoding;
- *   USART0 1 Mbaud    (U2X, UBRR 1: exact) RX and UDRE interrupts over two rings;
- *   main loop         feeds received bytes to the core (a COMMAND updates the MCP4922 at once),
- *                     runs the core's tick, writes the DAC, resets the watchdog, sleeps.
+ *   USART0 1 Mbaud    (U2X, UBRR 1: exact) RX and UDRE interrupts over two 256-byte rings,
+ *                     hand-written (no SREG change on their usual path);
+ *   main loop         sleeps until an ISR flags work in GPIOR0; feeds received bytes to the core
+ *                     (a tick waiting goes first), writes a COMMAND to the MCP4922 at once if it
+ *                     is the period's first, the newest of a burst at the next tick; runs the
+ *                     core's tick, resets the watchdog.
  * The watchdog (30 ms, system-reset mode) is reset only by the main loop after a tick: a hung
- * loop or a dead timer resets the board into its safe output. */
+ * loop or a dead timer resets the board into its safe output. Cycle counts: README.md. */
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
@@ -18,6 +22,7 @@
 #include <util/atomic.h>
 
 #include "../core/board.h"
+#include "../core/crc16.h"
 
 #define UART_RX_SIZE 256u                /* 8-bit indices wrap by themselves */
 #define UART_TX_SIZE 256u
@@ -35,16 +40,26 @@ static board_t board;
 static calib_t EEMEM ee_calib;
 uint8_t mcusr_at_reset __attribute__((section(".noinit")));
 
-static volatile uint8_t rx_ring[UART_RX_SIZE];
+/* The rings are 256-byte aligned: an 8-bit index is the low byte of the address (the ISRs load
+ * the high byte as a constant) and wraps by itself. */
+static volatile uint8_t rx_ring[UART_RX_SIZE] __attribute__((aligned(256)));
 static volatile uint8_t rx_head, rx_tail;
-static volatile uint8_t tx_ring[UART_TX_SIZE];
+static volatile uint8_t tx_ring[UART_TX_SIZE] __attribute__((aligned(256)));
 static volatile uint8_t tx_head, tx_tail;
 static volatile uint8_t uart_errors;    /* wraps: the main loop accumulates it */
+
+/* The main loop's work flags in GPIOR0 (sbi/cbi/sbic: single instructions, no SREG): set by the
+ * ISRs, the main loop sleeps while both are clear */
+#define WORK_RX 0                       /* bytes in the RX ring */
+#define WORK_TICK 1                     /* a sampled tick to process */
+#define WORK_HEARTBEAT 2                /* 0.8 ms into the period: the heartbeat's moment */
+#define WORK (_BV(WORK_RX) | _BV(WORK_TICK) | _BV(WORK_HEARTBEAT))
+#define UCSR0B_IDLE (_BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0))
+#define UCSR0B_SENDING (UCSR0B_IDLE | _BV(UDRIE0))
 
 static volatile int32_t encoder;
 static volatile uint8_t enc_state;
 static volatile board_inputs_t snapshot;
-static volatile uint8_t tick_pending;
 static volatile uint16_t overruns;
 static uint8_t uart_errors_seen;
 
@@ -58,102 +73,122 @@ void early_init(void)
 }
 
 /* ---- UART --------------------------------------------------------------------------------------- */
-/* A received byte into the RX ring; framing / overrun errors and a full ring are counted.
- * Naked like the UDRE ISR (1 kHz COMMANDs: 12 000 of these a second). */
+/* A received byte into the RX ring (framing / overrun errors and a full ring counted) and the
+ * main loop's WORK_RX flag. Hand-written: 1 Mbaud is a byte every 160 cycles; no instruction of
+ * the usual path changes SREG (cpse, sbrc, ld/st, sbi), so SREG is saved only on the error paths. */
 ISR(USART0_RX_vect, ISR_NAKED)
 {
     __asm__ volatile(
         "push r24\n\t"
-        "in r24, __SREG__\n\t"
-        "push r24\n\t"
-        "push r25\n\t"
         "push r30\n\t"
         "push r31\n\t"
-        "lds r24, %[ucsra]\n\t"
-        "lds r25, %[udr]\n\t"
-        "andi r24, %[errs]\n\t"
-        "breq 1f\n\t"
-        "lds r24, %[errors]\n\t"
-        "inc r24\n\t"
-        "sts %[errors], r24\n\t"
-        "1: lds r30, %[head]\n\t"
-        "mov r24, r30\n\t"
-        "inc r24\n\t"
-        "lds r31, %[tail]\n\t"
-        "cp r24, r31\n\t"
-        "brne 2f\n\t"
-        "lds r24, %[errors]\n\t"       /* ring full: the byte is lost */
-        "inc r24\n\t"
-        "sts %[errors], r24\n\t"
+        "lds r24, %[ucsra]\n\t"        /* the status belongs to the byte in UDR: read first */
+        "sbrc r24, %[fe]\n\t"
         "rjmp 3f\n\t"
-        "2: ldi r31, 0\n\t"
-        "subi r30, lo8(-(%[ring]))\n\t"
-        "sbci r31, hi8(-(%[ring]))\n\t"
-        "st Z, r25\n\t"
-        "sts %[head], r24\n\t"
-        "3: pop r31\n\t"
+        "sbrc r24, %[dor]\n\t"
+        "rjmp 3f\n\t"
+        "1: lds r30, %[head]\n\t"
+        "ldi r31, hi8(%[ring])\n\t"
+        "lds r24, %[udr]\n\t"
+        "st Z+, r24\n\t"               /* ring[head] (a free slot even when the ring is full) */
+        "lds r24, %[tail]\n\t"
+        "cpse r30, r24\n\t"            /* head + 1 == tail: full, the byte is lost */
+        "rjmp 2f\n\t"
+        "in r31, __SREG__\n\t"
+        "lds r30, %[errors]\n\t"
+        "inc r30\n\t"
+        "sts %[errors], r30\n\t"
+        "out __SREG__, r31\n\t"
+        "rjmp 4f\n\t"
+        "2: sts %[head], r30\n\t"
+        "sbi %[gpior], %[work_rx]\n\t"
+        "4: pop r31\n\t"
         "pop r30\n\t"
-        "pop r25\n\t"
-        "pop r24\n\t"
-        "out __SREG__, r24\n\t"
         "pop r24\n\t"
         "reti\n\t"
+        "3: in r31, __SREG__\n\t"      /* framing error or overrun: counted, the byte kept */
+        "lds r30, %[errors]\n\t"
+        "inc r30\n\t"
+        "sts %[errors], r30\n\t"
+        "out __SREG__, r31\n\t"
+        "rjmp 1b\n\t"
         :: [ucsra] "n" (_SFR_MEM_ADDR(UCSR0A)), [udr] "n" (_SFR_MEM_ADDR(UDR0)),
-           [errs] "n" (_BV(FE0) | _BV(DOR0)), [errors] "i" (&uart_errors),
-           [head] "i" (&rx_head), [tail] "i" (&rx_tail), [ring] "i" (rx_ring));
+           [fe] "n" (FE0), [dor] "n" (DOR0), [errors] "i" (&uart_errors),
+           [head] "i" (&rx_head), [tail] "i" (&rx_tail), [ring] "i" (rx_ring),
+           [gpior] "n" (_SFR_IO_ADDR(GPIOR0)), [work_rx] "n" (WORK_RX));
 }
 
-/* One byte of the TX ring per interrupt: 1 Mbaud is a byte every 160 cycles, so this ISR is the
- * firmware's hottest code; naked, it saves 4 registers instead of gcc's 8 (the ring is 256 bytes:
- * the 8-bit index wraps by itself). */
+/* One byte of the TX ring per interrupt, the firmware's hottest code (a byte every 160 cycles
+ * while sending): no SREG change (ld Z+, cpse, ldi), 3 registers saved. When the ring is empty
+ * after this byte the interrupt is switched off by writing UCSR0B's constant (no read-modify-
+ * write: uart_tx writes the other constant after it advanced tx_head). */
 ISR(USART0_UDRE_vect, ISR_NAKED)
 {
     __asm__ volatile(
         "push r24\n\t"
-        "in r24, __SREG__\n\t"
-        "push r24\n\t"
         "push r30\n\t"
         "push r31\n\t"
         "lds r30, %[tail]\n\t"
-        "lds r24, %[head]\n\t"
-        "cp r30, r24\n\t"
-        "breq 1f\n\t"
-        "ldi r31, 0\n\t"
-        "subi r30, lo8(-(%[ring]))\n\t"
-        "sbci r31, hi8(-(%[ring]))\n\t"
-        "ld r24, Z\n\t"
+        "ldi r31, hi8(%[ring])\n\t"
+        "ld r24, Z+\n\t"
         "sts %[udr], r24\n\t"
-        "lds r24, %[tail]\n\t"
-        "inc r24\n\t"
-        "sts %[tail], r24\n\t"
-        "rjmp 2f\n\t"
-        "1: lds r24, %[ucsrb]\n\t"
-        "andi r24, %[not_udrie]\n\t"
+        "sts %[tail], r30\n\t"         /* the low byte: wraps at 256 */
+        "lds r24, %[head]\n\t"
+        "cpse r30, r24\n\t"
+        "rjmp 1f\n\t"
+        "ldi r24, %[idle]\n\t"
         "sts %[ucsrb], r24\n\t"
-        "2: pop r31\n\t"
+        "1: pop r31\n\t"
         "pop r30\n\t"
-        "pop r24\n\t"
-        "out __SREG__, r24\n\t"
         "pop r24\n\t"
         "reti\n\t"
         :: [tail] "i" (&tx_tail), [head] "i" (&tx_head), [ring] "i" (tx_ring),
            [udr] "n" (_SFR_MEM_ADDR(UDR0)), [ucsrb] "n" (_SFR_MEM_ADDR(UCSR0B)),
-           [not_udrie] "n" ((uint8_t)~_BV(UDRIE0)));
+           [idle] "n" (UCSR0B_IDLE));
 }
 
+/* A frame into the TX ring, its CRC-16 computed on the way (core/board.h: bytes are the header
+ * and the payload; SYNC not in the CRC). Only the main loop writes tx_head and only the UDRE ISR
+ * tx_tail (one byte each: atomic), so no interrupt is masked: the bytes first, then the head,
+ * then UDRIE. */
 static void uart_tx(const uint8_t *bytes, uint8_t n, void *ctx)
 {
     (void)ctx;
-    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
-        if ((uint8_t)(tx_head - tx_tail) + (uint16_t)n >= UART_TX_SIZE) {
+    uint8_t head = tx_head;
+    if ((uint8_t)(head - tx_tail) + (uint16_t)n + 2u >= UART_TX_SIZE) {
+        ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
             uart_errors++;              /* the host does not read: the frame is dropped */
-        } else {
-            for (uint8_t i = 0; i < n; i++)
-                tx_ring[(uint8_t)(tx_head + i)] = bytes[i];
-            tx_head = (uint8_t)(tx_head + n);
-            UCSR0B |= _BV(UDRIE0);
         }
+        return;
     }
+    tx_ring[head++] = *bytes++;         /* SYNC */
+    tx_ring[head++] = *bytes++;
+    volatile uint8_t *ring = tx_ring + head;
+    n = (uint8_t)(n - 2);
+    uint8_t high = 0xFF, low = 0xFF;    /* CRC16_INIT */
+    /* per byte: to the ring (Y: its high address byte fixed, the low one wraps) and through
+     * the split CRC table (Z: the index is the low address byte): 20 cycles */
+    __asm__ volatile(
+        "1: ld r24, X+\n\t"
+        "st Y, r24\n\t"
+        "inc r28\n\t"
+        "eor r24, %[high]\n\t"
+        "mov r30, r24\n\t"
+        "ldi r31, hi8(%[th])\n\t"
+        "lpm %[high], Z\n\t"
+        "eor %[high], %[low]\n\t"
+        "ldi r31, hi8(%[tl])\n\t"
+        "lpm %[low], Z\n\t"
+        "dec %[n]\n\t"
+        "brne 1b\n\t"
+        : [high] "+r" (high), [low] "+r" (low), [n] "+r" (n), "+x" (bytes), "+y" (ring)
+        : [th] "i" (crc16_table_high), [tl] "i" (crc16_table_low)
+        : "r24", "r30", "r31", "memory");
+    head = (uint8_t)(uintptr_t)ring;
+    tx_ring[head++] = low;
+    tx_ring[head++] = high;
+    tx_head = head;
+    UCSR0B = UCSR0B_SENDING;
 }
 
 static void uart_init(void)
@@ -162,11 +197,11 @@ static void uart_init(void)
     UBRR0H = 0;
     UBRR0L = 1;                         /* 16 MHz / (8 * (1 + 1)) = 1 Mbaud exactly */
     UCSR0C = _BV(UCSZ01) | _BV(UCSZ00); /* 8N1 */
-    UCSR0B = _BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0);
+    UCSR0B = UCSR0B_IDLE;
 }
 
 /* ---- SPI: MCP3208 ADC (mode 0, 2 MHz) and MCP4922 DAC (mode 0, 8 MHz) --------------------------- */
-static uint8_t spi(uint8_t out)
+static inline __attribute__((always_inline)) uint8_t spi(uint8_t out)
 {
     SPDR = out;
     while (!(SPSR & _BV(SPIF)))
@@ -223,13 +258,22 @@ ISR(INT5_vect, ISR_ALIASOF(INT4_vect));
 /* ---- the 1 kHz tick ----------------------------------------------------------------------------- */
 ISR(TIMER1_COMPA_vect)
 {
-    if (tick_pending)
+    if (GPIOR0 & _BV(WORK_TICK))
         overruns++;                     /* the main loop did not consume the last tick */
     for (uint8_t ch = 0; ch < 4; ch++)
         snapshot.adc[ch] = adc_read(ch);
     snapshot.encoder = encoder;         /* INT4/5 are masked inside this ISR: consistent */
     snapshot.estop = (uint8_t)((PINA >> ESTOP) & 1);
-    tick_pending = 1;
+    GPIOR0 |= _BV(WORK_TICK);
+}
+
+/* 0.8 ms into every period (Timer1 compare B): a DEVICE_HEARTBEAT due is sent now, its 40 bytes
+ * on the line from 0.8 ms on, so their UDRE interrupts fall in two tick periods (the next SAMPLE
+ * waits behind the heartbeat's last bytes, 0.2 ms, once in 100 samples) */
+ISR(TIMER1_COMPB_vect, ISR_NAKED)
+{
+    __asm__ volatile("sbi %[gpior], %[bit]\n\treti\n\t"
+                     :: [gpior] "n" (_SFR_IO_ADDR(GPIOR0)), [bit] "n" (WORK_HEARTBEAT));
 }
 
 static void store(const calib_t *c, void *ctx)
@@ -272,32 +316,56 @@ int main(void)
     TCCR1A = 0;
     TCCR1B = _BV(WGM12) | _BV(CS11);    /* CTC, /8: 2 MHz */
     OCR1A = 1999;                       /* 1 kHz */
-    TIMSK1 = _BV(OCIE1A);
+    OCR1B = 1599;                       /* 0.8 ms: the heartbeat's moment */
+    TIMSK1 = _BV(OCIE1A) | _BV(OCIE1B);
     wdt_reset();
     set_sleep_mode(SLEEP_MODE_IDLE);
+    sleep_enable();                     /* SE stays set: sleep only ever runs below */
+    uint8_t dac_this_tick = 0;          /* a COMMAND went to the DAC in this tick period */
+    GPIOR0 = 0;
     sei();
 
     for (;;) {
-        while (rx_tail != rx_head) {
-            uint8_t byte = rx_ring[rx_tail];
-            rx_tail = (uint8_t)(rx_tail + 1);
-            board_rx_byte(&board, byte);
-            if (board.dac_dirty) {      /* a COMMAND: to the valves now */
-                board.dac_dirty = 0;
-                dac_write(board.dac);
+        /* idle: a few cycles per interrupt (every UDRE byte wakes the loop); sei + sleep as one
+         * asm statement: an interrupt that sets a flag after the check wakes the sleep */
+        cli();
+        if (!(GPIOR0 & WORK)) {
+            __asm__ volatile("sei\n\tsleep" ::: "memory");
+            continue;
+        }
+        sei();
+        if (GPIOR0 & _BV(WORK_RX)) {
+            GPIOR0 &= (uint8_t)~_BV(WORK_RX);  /* before the ring is read: a later byte sets it */
+            uint8_t tail = rx_tail;
+            while (tail != rx_head) {
+                board_rx_byte(&board, rx_ring[tail]);
+                rx_tail = ++tail;
+                /* a COMMAND to the valves now if it is this tick period's first; a later one
+                 * (a burst of frames: each supersedes the one before) at the next tick, the
+                 * newest only: at most two DAC writes a period, whatever the host sends */
+                if (board.dac_dirty && !dac_this_tick) {
+                    board.dac_dirty = 0;
+                    dac_this_tick = 1;
+                    dac_write(board.dac);
+                }
+                if (GPIOR0 & _BV(WORK_TICK)) {  /* a burst at the line rate: the tick first */
+                    GPIOR0 |= _BV(WORK_RX);
+                    break;
+                }
             }
         }
-        if (tick_pending) {
+        if (GPIOR0 & _BV(WORK_TICK)) {
             board_inputs_t in;
             ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
                 in = *(const board_inputs_t *)&snapshot;
-                tick_pending = 0;
+                GPIOR0 &= (uint8_t)~_BV(WORK_TICK);
                 board.overruns = overruns;
                 board.uart_errors = (uint16_t)(board.uart_errors + (uint8_t)(uart_errors -
                                                                              uart_errors_seen));
                 uart_errors_seen = uart_errors;
             }
             board_tick(&board, &in);
+            dac_this_tick = 0;
             if (board.dac_dirty) {
                 board.dac_dirty = 0;
                 dac_write(board.dac);
@@ -312,13 +380,9 @@ int main(void)
                 board.worst_tick_us = t / 2;
             wdt_reset();
         }
-        cli();
-        if (!tick_pending && rx_tail == rx_head) {
-            sleep_enable();
-            sei();
-            sleep_cpu();
-            sleep_disable();
+        if (GPIOR0 & _BV(WORK_HEARTBEAT)) {
+            GPIOR0 &= (uint8_t)~_BV(WORK_HEARTBEAT);
+            board_send_heartbeat(&board);
         }
-        sei();
     }
 }

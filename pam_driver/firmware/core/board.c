@@ -2,24 +2,25 @@
 
 #include "board.h"
 
+/* A frame whose payload is written at frame + FRAME_HEADER already (no copy). */
+static void send_frame(board_t *b, uint8_t *frame, uint8_t type, uint8_t length)
+{
+    b->tx(frame, frame_header(frame, type, b->seq++, length), b->ctx);
+}
+
 static void send(board_t *b, uint8_t type, const uint8_t *payload, uint8_t length)
 {
     uint8_t out[FRAME_MAX];
-    uint8_t n = frame_encode(out, type, b->seq++, payload, length);
-    b->tx(out, n, b->ctx);
+    memcpy(out + FRAME_HEADER, payload, length);
+    send_frame(b, out, type, length);
 }
 
-static void send_cal(board_t *b, uint8_t result)
+__attribute__((noinline)) static void send_cal(board_t *b, uint8_t result)
 {
     uint8_t p[1 + CALIB_SIZE];
     p[0] = result;
     calib_to_bytes(&b->cal, p + 1);
     send(b, T_CAL, p, sizeof p);
-}
-
-uint8_t board_safe(const board_t *b)
-{
-    return b->faults || b->comm_lost || !b->commanded || b->zero_left;
 }
 
 uint8_t board_status(const board_t *b)
@@ -66,7 +67,7 @@ void board_init(board_t *b, const calib_t *stored, uint8_t reset_cause, board_tx
     b->dac_dirty = 1;                   /* the HAL writes the safe output at once */
 }
 
-static void on_hello(board_t *b, const frame_t *f)
+__attribute__((noinline)) static void on_hello(board_t *b, const frame_t *f)
 {
     uint8_t p[7] = {PROTO_MAJOR, PROTO_MINOR, 0, 0, 12, 12, b->cal.fitted};
     put_u16(p + 2, SAMPLE_RATE_HZ);
@@ -79,18 +80,18 @@ static void on_hello(board_t *b, const frame_t *f)
     }
 }
 
-static void on_command(board_t *b, const frame_t *f)
+static inline void on_command(board_t *b, const uint8_t *payload)
 {
-    for (uint8_t i = 0; i < 2; i++) {
-        uint8_t clipped = 0;
-        b->cmd[i] = calib_command(&b->cal, i, get_u16(f->payload + 2 * i), &clipped);
-        b->clipped += clipped;
-    }
+    uint8_t clipped = 0;
+    b->cmd[0] = calib_command(&b->cal, 0, get_u16(payload), &clipped);
+    b->cmd[1] = calib_command(&b->cal, 1, get_u16(payload + 2), &clipped);
+    if (clipped)
+        b->clipped++;
     b->comm_lost = 0;
     b->commanded = 1;
 }
 
-static void on_arm(board_t *b)
+__attribute__((noinline)) static void on_arm(board_t *b)
 {
     uint8_t keep = 0;
     if ((b->faults & FAULT_ESTOP) && b->estop_now)
@@ -101,7 +102,7 @@ static void on_arm(board_t *b)
     b->commanded = 0;                   /* the safe output until the next COMMAND */
 }
 
-static void on_zero(board_t *b)
+__attribute__((noinline)) static void on_zero(board_t *b)
 {
     if (!board_safe(b)) {               /* only while the board holds the safe output */
         send_cal(b, CAL_NOT_SAFE);
@@ -112,7 +113,7 @@ static void on_zero(board_t *b)
     send_cal(b, CAL_STARTED);
 }
 
-static void on_cal_write(board_t *b, const frame_t *f)
+__attribute__((noinline)) static void on_cal_write(board_t *b, const frame_t *f)
 {
     if (!board_safe(b) || b->zero_left) {
         send_cal(b, CAL_NOT_SAFE);
@@ -147,7 +148,7 @@ __attribute__((noinline)) static void on_frame(board_t *b, const frame_t *fp)
     b->ms_since_host = 0;
     switch (f.type) {
     case T_HELLO: on_hello(b, &f); break;
-    case T_COMMAND: on_command(b, &f); break;
+    case T_COMMAND: on_command(b, f.payload); break;
     case T_ARM: on_arm(b); break;
     case T_ZERO: on_zero(b); break;
     case T_CAL_WRITE: on_cal_write(b, &f); break;
@@ -157,10 +158,32 @@ __attribute__((noinline)) static void on_frame(board_t *b, const frame_t *fp)
     update_output(b);
 }
 
-void board_rx_frame_end(board_t *b)
+void board_rx_frame_end(board_t *b, uint8_t pushed)
 {
+    frame_decoder_t *d = &b->rx;
     frame_t f;
-    while (frame_decoder_next(&b->rx, &f))
+    uint8_t type = d->buf[2];
+    if (pushed == FRAME_READY && (type == T_HEARTBEAT || (type == T_COMMAND && d->buf[5] >= 4))) {
+        b->host_frames++;               /* the 1 kHz and 20 Hz frames, as on_frame does them */
+        b->ms_since_host = 0;
+        if (type == T_COMMAND) {
+            on_command(b, d->buf + FRAME_HEADER);
+            update_output(b);
+        }
+        d->n = 0;
+        d->crc = CRC16_INIT;
+        return;
+    }
+    if (pushed == FRAME_READY) {        /* one whole frame in the buffer */
+        f.type = type;
+        f.length = d->buf[5];
+        f.payload = d->buf + FRAME_HEADER;
+        on_frame(b, &f);
+        d->n = 0;
+        d->crc = CRC16_INIT;
+        return;
+    }
+    while (frame_decoder_next(d, &f))   /* garbage, a CRC error: resynchronise */
         on_frame(b, &f);
 }
 
@@ -190,7 +213,8 @@ static void zero_step(board_t *b, const board_inputs_t *in)
 
 static void send_sample(board_t *b, const uint16_t p[3], const board_inputs_t *in, uint8_t status)
 {
-    uint8_t s[17];
+    uint8_t out[FRAME_OVERHEAD + 17];
+    uint8_t *s = out + FRAME_HEADER;
     put_u32(s, b->tick);
     put_u16(s + 4, p[0]);
     put_u16(s + 6, p[1]);
@@ -198,12 +222,19 @@ static void send_sample(board_t *b, const uint16_t p[3], const board_inputs_t *i
     put_u16(s + 12, in->adc[2]);
     s[14] = status;
     put_u16(s + 15, p[2]);
-    send(b, T_SAMPLE, s, (b->cal.fitted & FITTED_SUPPLY) ? 17 : 15);
+    send_frame(b, out, T_SAMPLE, (b->cal.fitted & FITTED_SUPPLY) ? 17 : 15);
 }
 
-static void send_heartbeat(board_t *b, uint8_t status)
+void board_send_heartbeat(board_t *b)
 {
-    uint8_t h[32];
+    if (!b->heartbeat_due)
+        return;
+    b->heartbeat_due = 0;
+    if (!b->streaming)
+        return;
+    uint8_t status = board_status(b) | (b->estop_now ? ST_ESTOP : 0);
+    uint8_t out[FRAME_OVERHEAD + 32];
+    uint8_t *h = out + FRAME_HEADER;
     put_u32(h, b->host_frames);
     put_u32(h + 4, b->rx.crc_errors);
     put_u32(h + 8, b->watchdog_trips);
@@ -219,7 +250,7 @@ static void send_heartbeat(board_t *b, uint8_t status)
     put_u32(h + 24, b->clipped);
     put_u16(h + 28, b->dac[0]);
     put_u16(h + 30, b->dac[1]);
-    send(b, T_DEVICE_HEARTBEAT, h, sizeof h);
+    send_frame(b, out, T_DEVICE_HEARTBEAT, 32);
 }
 
 void board_tick(board_t *b, const board_inputs_t *in)
@@ -258,7 +289,7 @@ void board_tick(board_t *b, const board_inputs_t *in)
         send_sample(b, p, in, status);
         if (++b->heartbeat_in >= HEARTBEAT_EVERY) {
             b->heartbeat_in = 0;
-            send_heartbeat(b, status);
+            b->heartbeat_due = 1;       /* board_send_heartbeat: the HAL's moment */
         }
     }
 }

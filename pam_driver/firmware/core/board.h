@@ -51,6 +51,9 @@ typedef struct {
     uint8_t estop;                      /* 1: the e-stop input is active */
 } board_inputs_t;
 
+/* A frame to send: bytes[0..n) are its header and payload; the HAL sends them followed by the
+ * CRC-16 of bytes[2..n), little-endian (on the AVR computed while copying to the TX ring: one
+ * pass over the bytes). */
 typedef void (*board_tx_t)(const uint8_t *bytes, uint8_t n, void *ctx);
 typedef void (*board_store_t)(const calib_t *c, void *ctx);     /* write to EEPROM */
 
@@ -64,7 +67,8 @@ typedef struct {
     uint16_t seq;
     uint32_t tick;
     uint8_t heartbeat_in;               /* samples since the last DEVICE_HEARTBEAT */
-    uint32_t ms_since_host;             /* sample periods since the last valid host frame */
+    uint8_t heartbeat_due;              /* board_send_heartbeat has one to send */
+    uint16_t ms_since_host;             /* sample periods since the last valid host frame */
     uint8_t streaming;
     uint8_t commanded;                  /* a COMMAND applied in this session */
     uint8_t comm_lost;
@@ -89,21 +93,28 @@ typedef struct {
 
 void board_init(board_t *b, const calib_t *stored, uint8_t reset_cause, board_tx_t tx,
                 board_store_t store, void *ctx);
-void board_rx_frame_end(board_t *b);  /* the slow path of board_rx_byte */
+void board_rx_frame_end(board_t *b, uint8_t pushed);   /* the slow path of board_rx_byte */
 
-/* One received byte. Inline fast path: a byte inside a frame whose header is sane only goes to
- * the buffer (on the AVR every received byte passes here: 1 kHz COMMANDs are 12 kB/s). */
+/* One received byte (inline: on the AVR every received byte passes here, 1 kHz COMMANDs are
+ * 12 kB/s, a burst of them 100 kB/s): appended and the CRC kept (frame_decoder_push); a complete
+ * frame is handled in place. */
 static inline void board_rx_byte(board_t *b, uint8_t byte)
 {
-    frame_decoder_t *d = &b->rx;
-    d->buf[d->n++] = byte;
-    if (d->n > 2 && (d->n < FRAME_HEADER ||
-                     (d->buf[5] <= FRAME_MAX_PAYLOAD && d->n < FRAME_OVERHEAD + d->buf[5])))
-        return;
-    board_rx_frame_end(b);
+    uint8_t pushed = frame_decoder_push(&b->rx, byte);
+    if (pushed != FRAME_MORE)
+        board_rx_frame_end(b, pushed);
 }
 void board_tick(board_t *b, const board_inputs_t *in);
+/* The DEVICE_HEARTBEAT (10 Hz) that board_tick made due, if any, with the counters and state of
+ * now; called by the HAL after board_tick, at a moment of its choice within the tick period (the
+ * AVR: late in the period, so that the heartbeat's bytes on the line share two periods' CPU). */
+void board_send_heartbeat(board_t *b);
 uint8_t board_status(const board_t *b);
-uint8_t board_safe(const board_t *b);   /* the valves are at the safe output */
+
+/* The valves are at the safe output. */
+static inline uint8_t board_safe(const board_t *b)
+{
+    return b->faults || b->comm_lost || !b->commanded || b->zero_left;
+}
 
 #endif

@@ -96,10 +96,3 @@ uint16_t calib_pressure(const calib_t *c, uint8_t ch, uint16_t raw)
         return 0;
     return v > (int32_t)ADC_FULL_SCALE ? ADC_FULL_SCALE : (uint16_t)v;
 }
-
-uint16_t calib_command(const calib_t *c, uint8_t ch, uint16_t code, uint8_t *clipped)
-{
-    if (code < c->cmd_min[ch]) { *clipped = 1; return c->cmd_min[ch]; }
-    if (code > c->cmd_max[ch]) { *clipped = 1; return c->cmd_max[ch]; }
-    return code;
-}

@@ -41,7 +41,13 @@ uint8_t calib_valid(const calib_t *c);
 /* Raw ADC counts of pressure channel ch -> corrected counts (0..ADC_FULL_SCALE). */
 uint16_t calib_pressure(const calib_t *c, uint8_t ch, uint16_t raw);
 /* Clips a DAC code of valve channel ch to [cmd_min, cmd_max]; *clipped set when it did. */
-uint16_t calib_command(const calib_t *c, uint8_t ch, uint16_t code, uint8_t *clipped);
+static inline uint16_t calib_command(const calib_t *c, uint8_t ch, uint16_t code,
+                                     uint8_t *clipped)
+{
+    if (code < c->cmd_min[ch]) { *clipped = 1; return c->cmd_min[ch]; }
+    if (code > c->cmd_max[ch]) { *clipped = 1; return c->cmd_max[ch]; }
+    return code;
+}
 /* Serialisation (little-endian, CALIB_SIZE bytes) for the CAL frames and the EEPROM. */
 void calib_to_bytes(const calib_t *c, uint8_t *out);
 void calib_from_bytes(calib_t *c, const uint8_t *in);

@@ -123,6 +123,8 @@ static void pty_close(void)
 static struct {
     uint64_t ms;                        /* simulated milliseconds */
     uint64_t ticks, busy_worst, busy_total; /* cycles executing (not asleep) per tick period */
+    uint64_t busy_hist[CYCLES_PER_MS / 100 + 1];   /* tick periods per 100-cycle bin */
+    uint64_t over_half;                 /* tick periods busy more than half the period */
     uint64_t tx_bytes, rx_bytes, dropped_tx;
     uint64_t cmd_frames, cmd_delays, cmd_delay_worst, cmd_delay_sum;   /* cycles */
     uint64_t dac_updates, late_ms, worst_lag_us, dropped_lag_ms, resets;
@@ -394,10 +396,25 @@ static int plant_exchange(void)
 }
 
 /* ---- status ------------------------------------------------------------------------------------ */
+/* The busy cycles that fraction q of the tick periods do not exceed (the top of its 100-cycle
+ * bin; the last bin holds every period of a whole tick or more). */
+static uint64_t busy_quantile(double q)
+{
+    uint64_t seen = 0, need = (uint64_t)ceil(q * (double)st.ticks);
+    for (unsigned i = 0; i <= CYCLES_PER_MS / 100; i++) {
+        seen += st.busy_hist[i];
+        if (seen >= need && seen)
+            return i < CYCLES_PER_MS / 100 ? (i + 1) * 100ull : st.busy_worst;
+    }
+    return st.busy_worst;
+}
+
 static void status_json(FILE *f)
 {
     double secs = st.ms / 1000.0;
     fprintf(f, "{\"ms\": %llu, \"tick_cycles_worst\": %llu, \"tick_cycles_mean\": %.1f, "
+            "\"tick_cycles_p99\": %llu, \"tick_cycles_p999\": %llu, \"ticks\": %llu, "
+            "\"ticks_over_half\": %llu, "
             "\"cycles_per_ms\": %u, \"tx_bytes\": %llu, \"rx_bytes\": %llu, "
             "\"tx_bytes_per_s\": %.1f, \"rx_bytes_per_s\": %.1f, \"line_bytes_per_s\": 100000, "
             "\"dropped_tx\": %llu, \"command_frames\": %llu, \"command_delays\": %llu, "
@@ -407,7 +424,9 @@ static void status_json(FILE *f)
             "\"resets\": %llu, \"estop\": %d, "
             "\"encoder\": %lld, \"encoder_target\": %lld, \"device\": \"%s\"}\n",
             (unsigned long long)st.ms, (unsigned long long)st.busy_worst,
-            st.ticks ? (double)st.busy_total / st.ticks : 0.0, CYCLES_PER_MS,
+            st.ticks ? (double)st.busy_total / st.ticks : 0.0,
+            (unsigned long long)busy_quantile(0.99), (unsigned long long)busy_quantile(0.999),
+            (unsigned long long)st.ticks, (unsigned long long)st.over_half, CYCLES_PER_MS,
             (unsigned long long)st.tx_bytes, (unsigned long long)st.rx_bytes,
             secs > 0 ? st.tx_bytes / secs : 0.0, secs > 0 ? st.rx_bytes / secs : 0.0,
             (unsigned long long)st.dropped_tx, (unsigned long long)st.cmd_frames,
@@ -609,6 +628,8 @@ int main(int argc, char **argv)
                     st.busy_total += busy;
                     if (busy > st.busy_worst)
                         st.busy_worst = busy;
+                    st.busy_hist[busy / 100 < CYCLES_PER_MS / 100 ? busy / 100 : CYCLES_PER_MS / 100]++;
+                    st.over_half += busy > CYCLES_PER_MS / 2;
                     if (getenv("PAM_BOARD_SIM_TRACE") && busy > profile_min) fprintf(stderr, "tick %llu udre %llu rxc %llu instr %u busy %llu rx %llu tx %llu\n", (unsigned long long)tick_n, (unsigned long long)vec_count[1], (unsigned long long)vec_count[0], n_pcs, (unsigned long long)busy, (unsigned long long)st.rx_bytes, (unsigned long long)st.tx_bytes);
                     if (profile && busy > profile_min && busy < (getenv("PAM_BOARD_SIM_PROFILE_MAX") ? (uint64_t)atoll(getenv("PAM_BOARD_SIM_PROFILE_MAX")) : ~0ull))
                         for (uint32_t k = 0; k < n_pcs; k++)

@@ -40,6 +40,10 @@ def main() -> int:
           f"{b['tick_cycles_worst']} cycles = {100 * b['tick_cycles_worst'] / per:.0f} % "
           f"(target <= 50 %: {'met' if b['tick_cycles_worst'] <= per / 2 else 'MISSED'}), "
           f"mean {b['tick_cycles_mean']:.0f} = {100 * b['tick_cycles_mean'] / per:.0f} %")
+    if 'tick_cycles_p99' in b:
+        print(f"    99 % of the {b['ticks']} periods <= {100 * b['tick_cycles_p99'] / per:.0f} %, "
+              f"99.9 % <= {100 * b['tick_cycles_p999'] / per:.0f} %; {b['ticks_over_half']} "
+              f"periods above 50 %")
     print(f"  UART at 1 Mbaud: board -> host {b['tx_bytes_per_s']:.0f} B/s = "
           f"{100 * b['tx_bytes_per_s'] / LINE:.1f} % of the line, host -> board "
           f"{b['rx_bytes_per_s']:.0f} B/s = {100 * b['rx_bytes_per_s'] / LINE:.1f} %")
