@@ -86,7 +86,8 @@ class BoardRig(DriverRigProbe):
         else:
             self.driver.wait_for(lambda: bool(self.values()), STARTUP, 'driver diagnostics')
 
-    def arm(self) -> None:
+    def arm(self) -> Trigger.Response:
+        """driver_node's ~/arm; its reply."""
         client = self.probe.client(Trigger, '/pam/driver_node/arm')
         assert client.wait_for_service(timeout_sec=10.0)
         future = client.call_async(Trigger.Request())
@@ -94,6 +95,8 @@ class BoardRig(DriverRigProbe):
         while not future.done() and time.monotonic() < end:
             time.sleep(0.01)
         self.probe.node.destroy_client(client)
+        assert future.done(), '~/arm did not answer in 10 s'
+        return future.result()
 
     def stop(self) -> None:
         self.driver.stop()
@@ -168,21 +171,25 @@ def test_board_safety_reaches_the_driver(board_rig):
     r.send(3.0, 5.0, duration=0.3)
     r.board.wait_status(lambda s: s['dac_codes'] == codes(3.0, 5.0), 3.0, 'commanding again')
     # a hung firmware (a dead SPI bus): the AVR watchdog resets it into its safe output, the
-    # driver reconnects; the reset is a latched fault: the board stays vented, the driver says so
+    # driver reconnects; the reset is a latched fault: the board stays vented, the driver says
+    # so, and its ~/arm sends ARM with its own re-arm (the board announced 1.2)
     r.board.command('spi_stall 100')
     r.board.wait_status(lambda s: s['resets'] >= 1 and s['dac_codes'] == safe, 3.0,
                         'the watchdog reset')
     since = time.monotonic()
     r.driver.wait_for(lambda: r.driver.stderr.count('device lost') >= 2, 5.0,
                       "'device lost' at the reset")
-    r.arm()
-    r.send(3.0, 5.0, duration=1.0)
     values = r.wait_values(lambda v: v['connected'] == 'true' and v['board vented now'] == 'true',
                            10.0, 'the latched vent on /diagnostics')
     assert r.board.status()['dac_codes'] == safe, 'latched until ARM'
     assert r.status(since).level >= DiagnosticStatus.WARN, values
+    reply = r.arm()
+    assert reply.success and 'ARM sent to the board' in reply.message, reply
+    r.send(3.0, 5.0, duration=0.3)
+    r.board.wait_status(lambda s: s['dac_codes'] == codes(3.0, 5.0), 3.0,
+                        'commanding again after ~/arm cleared the reset latch')
     r.stop()
-    # the e-stop input and the re-arm (board_tool: the driver does not send ARM)
+    # the e-stop input and the re-arm by board_tool (its ARM, without a driver)
     board = r.board = SimBoard(r.board.status_file.parent, eeprom=None, name='board')
     client = bt.Board(board.link)
     client.hello()
@@ -211,6 +218,16 @@ def test_estop_and_overpressure_reach_the_driver(board_rig):
     r.board.command('estop 0')
     r.send(5.0, 5.0, duration=0.3)
     assert r.board.status()['dac_codes'] == safe, 'latched until ARM'
+    # the driver stayed armed all along (the board vented, not the driver): its commands were
+    # ignored by the latched board; ~/arm sends ARM and they apply again
+    assert r.values()['armed'] == 'true', r.values()
+    reply = r.arm()
+    assert reply.success and 'ARM sent to the board' in reply.message, reply
+    r.send(5.0, 5.0, duration=0.3)
+    r.board.wait_status(lambda s: s['dac_codes'] == codes(5.0, 5.0), 3.0,
+                        'commanding again after ~/arm')
+    r.wait_values(lambda v: v['board ARMs sent'] == '1' and v['board vented now'] == 'false',
+                  5.0, 'the ARM and the end of the vent on /diagnostics')
     r.stop()
     # over-pressure: the board's own limit (350 kPa gauge) trips while the driver commands
     r = board_rig(eeprom=image(safe_code=tuple(safe), p_max_counts=limit),

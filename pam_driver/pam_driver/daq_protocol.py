@@ -10,6 +10,11 @@ Version 1.1 adds the optional supply-pressure channel: HELLO_ACK flag bit 2 (FLA
 then a u16 ADC P_supply at the end of every SAMPLE payload (SUPPLY_FIELD). A board without the
 transducer sends the frames of 1.0 byte for byte; a 1.0 host ignores the field (bytes beyond a
 payload belong to a later minor version).
+
+Version 1.2 (the reference board, pam_driver/firmware) adds ARM (host -> device, no payload):
+the device clears its latched faults whose cause is gone. driver_node sends it on ~/arm to a
+device that announced 1.2 or later (DeviceInfo.has_arm); the rest of 1.2 (the board's
+calibration frames, the heartbeat's counters) is firmware/tools/board_tool.py's.
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ PROTOCOL_MINOR = 1    # 1.1: the optional supply-pressure channel
 HELLO = 0x01
 COMMAND = 0x02
 HEARTBEAT = 0x03
+ARM = 0x04              # 1.2: clear the device's latched faults whose cause is gone
+ARM_MINOR = 2           # the first minor version (of major 1) with ARM
 # device -> host
 HELLO_ACK = 0x81
 SAMPLE = 0x80
@@ -53,9 +60,9 @@ COMMAND_PAYLOAD = struct.Struct('<HH')               # dac u1, dac u2
 # host frames received, CRC errors, device watchdog trips, state
 DEVICE_HEARTBEAT_PAYLOAD = struct.Struct('<IIIB')
 
-NAMES = {HELLO: 'HELLO', COMMAND: 'COMMAND', HEARTBEAT: 'HEARTBEAT', HELLO_ACK: 'HELLO_ACK',
-         SAMPLE: 'SAMPLE', DEVICE_HEARTBEAT: 'DEVICE_HEARTBEAT'}
-PAYLOADS = {HELLO: HELLO_PAYLOAD, COMMAND: COMMAND_PAYLOAD, HEARTBEAT: None,
+NAMES = {HELLO: 'HELLO', COMMAND: 'COMMAND', HEARTBEAT: 'HEARTBEAT', ARM: 'ARM',
+         HELLO_ACK: 'HELLO_ACK', SAMPLE: 'SAMPLE', DEVICE_HEARTBEAT: 'DEVICE_HEARTBEAT'}
+PAYLOADS = {HELLO: HELLO_PAYLOAD, COMMAND: COMMAND_PAYLOAD, HEARTBEAT: None, ARM: None,
             HELLO_ACK: HELLO_ACK_PAYLOAD, SAMPLE: SAMPLE_PAYLOAD,
             DEVICE_HEARTBEAT: DEVICE_HEARTBEAT_PAYLOAD}
 
@@ -138,6 +145,11 @@ class DeviceInfo:
         """A supply-pressure transducer fitted: its SAMPLE frames carry SUPPLY_FIELD (1.1)."""
         return bool(self.flags & FLAG_SUPPLY)
 
+    @property
+    def has_arm(self) -> bool:
+        """The device takes ARM (1.2 and later minor versions of major 1)."""
+        return self.major == PROTOCOL_MAJOR and self.minor >= ARM_MINOR
+
 
 def hello(seq: int, major: int = PROTOCOL_MAJOR, minor: int = PROTOCOL_MINOR) -> bytes:
     return encode_frame(HELLO, seq, HELLO_PAYLOAD.pack(major, minor))
@@ -154,6 +166,11 @@ def command(seq: int, dac1: int, dac2: int) -> bytes:
 
 def heartbeat(seq: int) -> bytes:
     return encode_frame(HEARTBEAT, seq)
+
+
+def arm(seq: int) -> bytes:
+    """ARM (1.2): the device clears its latched faults whose cause is gone."""
+    return encode_frame(ARM, seq)
 
 
 def sample(seq: int, s: Sample) -> bytes:

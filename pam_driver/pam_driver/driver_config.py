@@ -84,8 +84,8 @@ SUMMARY = (
     '  subscribes  valve_command   pam_interfaces/ValveCommand      u1, u2 (V)',
     '  publishes   ~/applied_command pam_interfaces/ValveCommand    what the valves get',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
-    '  services    ~/arm, ~/estop  std_srvs/Trigger                 re-arm after a safe stop; '
-    'e-stop',
+    '  services    ~/arm, ~/estop  std_srvs/Trigger                 re-arm after a safe stop '
+    '(and ARM to a 1.2 board: its latched faults); e-stop',
 )
 
 

@@ -17,8 +17,13 @@ the device lost
 and an internal error (on_internal_error). The reason kept is the first one since the last arm
 (an e-stop replaces it). It goes back to ARMED only through ~/arm (on_arm), refused while the
 device is not connected or a sensor fault persists; even then the valves stay at safe_output until
-the next valid command. on_connected starts every session from safe_output; on_shutdown ends it
-there.
+the next valid command. A device of protocol 1.2 or later (on_connected(device_arm=True): the
+reference board) latches faults of its own (its e-stop input, over-pressure, a watchdog reset) and
+ignores COMMANDs until it gets ARM: a granted ~/arm asks the node to send ARM too
+(Action.device_arm), so that one ~/arm re-arms the rig; the board keeps the faults whose cause
+persists (an e-stop still pressed) and the node's /diagnostics goes on reporting its vents. A 1.1
+device has no ARM: the reply says so. on_connected starts every session from safe_output;
+on_shutdown ends it there.
 
 Commands (on_command) go through the stack's one voltage sanitiser
 (pam_model.valve_voltage.sanitise_command) with valve_limits: a command with a non-finite voltage
@@ -106,6 +111,7 @@ class Action(NamedTuple):
     logs: tuple[Log, ...] = ()
     ok: bool = True                # a command applied, a request granted
     message: str = ''              # the reply of a request (~/arm, ~/estop)
+    device_arm: bool = False       # send ARM to the device (protocol 1.2) before the output
 
 
 NOTHING = Action()
@@ -123,6 +129,8 @@ class DriverCore:
         self.safe_reason = '' if self.armed else 'not armed at start'
         self.output: Output = config.safe_output
         self.connected = False
+        self.device_arm = False     # the connected device takes ARM (protocol 1.2)
+        self.device_arms = 0        # ARM frames asked for (granted ~/arm on such a device)
         self.last_command_time: float | None = None   # s, the last valid command applied
         self.connects = 0
         self.disconnects = 0
@@ -194,7 +202,15 @@ class DriverCore:
             self.last_command_time = None
             ok, message = True, (f'armed (was safe: {previous or "-"}); the next valid '
                                  'valve_command is applied')
-        return Action(ok=ok, message=message, logs=(Log('info', f'~/arm: {message}'),))
+            if self.device_arm:
+                self.device_arms += 1
+                message += ('; ARM sent to the board: it clears its latched faults whose cause '
+                            'is gone (an e-stop still pressed stays latched: see board vents on '
+                            '/diagnostics)')
+            else:
+                message += '; the board speaks protocol 1.1: it has no ARM (nothing sent)'
+        return Action(ok=ok, message=message, logs=(Log('info', f'~/arm: {message}'),),
+                      device_arm=ok and self.device_arm)
 
     def on_estop(self) -> Action:
         """~/estop: safe output, latched, whatever the state."""
@@ -251,9 +267,11 @@ class DriverCore:
             return self._go_safe(f'pressure sensor fault: {fault}', logs=logs)
         return Action(logs=tuple(logs)) if logs else NOTHING
 
-    def on_connected(self) -> Action:
-        """A device passed the handshake: whatever its valves had before, safe_output."""
+    def on_connected(self, device_arm: bool = False) -> Action:
+        """A device passed the handshake: whatever its valves had before, safe_output.
+        device_arm: it takes ARM (protocol 1.2 and later; daq_protocol.DeviceInfo.has_arm)."""
         self.connected = True
+        self.device_arm = bool(device_arm)
         self.connects += 1
         return self._send(self.config.safe_output)
 
@@ -298,6 +316,7 @@ class DriverCore:
             'watchdog trips': self.watchdog_trips,
             'last watchdog trip after (ms)': self.last_trip_ms,
             'e-stops': self.estops,
+            'board ARMs sent': self.device_arms,
             'sensor fault': self.sensor_fault or 'none',
             'sensor faults': self.sensor_faults,
             'commands received': self.commands,

@@ -20,6 +20,9 @@ OUT_OF_RANGE_SAMPLES of them in a row are a sensor fault like P1's); subscribes
 `valve_command`; publishes `~/applied_command` (the voltages the valves actually get, on each
 change) and `/diagnostics`. Services `~/arm`, `~/estop` and `~/reset_statistics` (std_srvs/Trigger;
 the last restarts the sample -> command latency figures on /diagnostics, pam_common.latency).
+A granted `~/arm` also sends ARM (PROTOCOL.md 1.2) to a board that announced protocol 1.2 or later
+(the reference board: it clears its own latched faults whose cause is gone; its reply says what
+was sent); a 1.1 device gets nothing more than before.
 
 Threads: a reader thread owns the serial connection (connect, handshake, read samples, send the
 heartbeat, the command watchdog tick, reconnect with exponential backoff); the executor thread
@@ -205,6 +208,10 @@ class DriverNode(LinkedNode):
         """Write the action's output to the valves and publish ~/applied_command if it changed;
         False if there was nothing to write or no device to write it to (or the write failed).
         The caller holds self._lock (the decision and its COMMAND frame are one step)."""
+        if action.device_arm:       # before the output: the board applies the next COMMAND
+            with self._io_lock:
+                seq = self._next_seq()
+            self._write(proto.arm(seq))
         if action.output is None:
             return False
         u1, u2 = action.output
@@ -388,7 +395,7 @@ class DriverNode(LinkedNode):
             self._device = info
             self._incompatible = ''
             # whatever the valves had before: start from the safe output
-            self._apply(self._core.on_connected())
+            self._apply(self._core.on_connected(device_arm=info.has_arm))
         self._prev_angle = None
         supply = self._start_supply(info)
         if not self._joint_states.set_sample_rate(info.rate):

@@ -182,3 +182,17 @@ def test_supply_channel_round_trip_and_what_a_1_0_host_reads():
     assert proto.parse_sample(frame) == proto.Sample(99, 1000, 2000, 5, 2048, 0)
     assert frame.fields() == (99, 1000, 2000, 5, 2048, 0), 'the 1.0 fields, the rest ignored'
     assert proto.PROTOCOL_MINOR >= 1
+
+
+def test_arm_frame_and_the_devices_that_take_it():
+    """ARM (1.2): type 0x04, no payload, the board's own encoding (firmware/core); only a device
+    of major 1 announcing minor 2 or later takes it."""
+    frame = proto.arm(7)
+    assert frame == proto.encode_frame(0x04, 7) and len(frame) == proto.OVERHEAD
+    decoded, = proto.Decoder().feed(frame)
+    assert (decoded.type, decoded.seq, decoded.name, decoded.fields()) == (proto.ARM, 7, 'ARM', ())
+
+    def info(major, minor):
+        return proto.DeviceInfo(major, minor, 1000, 12, 12, 0)
+    assert [info(1, m).has_arm for m in (0, 1, 2, 3)] == [False, False, True, True]
+    assert not info(2, 2).has_arm

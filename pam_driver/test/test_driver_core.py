@@ -176,8 +176,10 @@ def test_the_safe_state_is_latched_until_arm_and_arming_does_not_move_the_valves
     action = core.on_arm()
     assert action.ok and action.output is None and core.output == SAFE
     assert action.message == ('armed (was safe: command watchdog: no valve_command for 1000.0 '
-                              'ms); the next valid valve_command is applied')
+                              'ms); the next valid valve_command is applied; the board speaks '
+                              'protocol 1.1: it has no ARM (nothing sent)')
     assert action.logs == (Log('info', f'~/arm: {action.message}'),)
+    assert not action.device_arm and core.device_arms == 0
     assert core.armed and core.safe_reason == '' and core.last_command_time is None
     assert core.on_tick(T0 + 10.0) is NOTHING, 'the watchdog restarts with the next command'
     assert core.on_command(7.0, 3.0, T0 + 10.0).output == (7.0, 3.0)
@@ -188,6 +190,27 @@ def test_arming_when_armed_restarts_the_watchdog_with_the_next_command():
     core.on_command(8.0, 2.0, T0)
     assert core.on_arm().message.startswith('armed (was safe: -)')
     assert core.on_tick(T0 + 1.0) is NOTHING and core.armed
+
+
+def test_arm_asks_for_the_boards_arm_only_from_a_device_that_takes_it():
+    """A 1.2 device (on_connected(device_arm=True)): a granted ~/arm carries device_arm (the
+    node sends ARM before anything else), counted on /diagnostics; refused, it does not; the
+    next session's device decides again."""
+    core = DriverCore(SafetyConfig.from_values(build_config({})), CAL)
+    core.on_connected(device_arm=True)
+    trip_watchdog(core)
+    action = core.on_arm()
+    assert action.ok and action.device_arm and action.output is None
+    assert 'ARM sent to the board' in action.message, action.message
+    assert core.device_arms == 1 and core.report_values()['board ARMs sent'] == 1
+    assert core.on_command(7.0, 3.0, T0 + 10.0).output == (7.0, 3.0)
+    core.on_disconnected()
+    refused = core.on_arm()
+    assert not refused.ok and not refused.device_arm and core.device_arms == 1
+    core.on_connected()                     # a 1.1 device next
+    action = core.on_arm()
+    assert action.ok and not action.device_arm and 'has no ARM' in action.message
+    assert core.device_arms == 1
 
 
 def test_arm_is_refused_while_the_device_is_not_connected():
@@ -406,7 +429,7 @@ def test_report_values_carry_the_state_and_counters():
         'armed': False, 'safe reason': 'e-stop (~/estop)', 'output u1 (V)': 0.0,
         'output u2 (V)': 0.0, 'watchdog timeout (ms)': 50.0, 'watchdog trips': 0,
         'last watchdog trip after (ms)': values['last watchdog trip after (ms)'], 'e-stops': 1,
-        'sensor fault': 'none', 'sensor faults': 0, 'commands received': 2,
+        'board ARMs sent': 0, 'sensor fault': 'none', 'sensor faults': 0, 'commands received': 2,
         'commands clipped': 1, 'non-finite commands': 1, 'commands ignored (safe)': 1}
     assert math.isnan(values['last watchdog trip after (ms)'])
 
