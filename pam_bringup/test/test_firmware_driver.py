@@ -20,11 +20,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from std_srvs.srv import Trigger
 
+from pam_bringup.stack import default_params_file
 from pam_common.stamps import stamp_ns
-from pam_common.testing import DriverRigProbe
+from pam_common.testing import STOP_TIMEOUT, DriverRigProbe
 from pam_interfaces.msg import (
     JointEstimate,
     JointMeasurement,
@@ -247,6 +249,54 @@ def test_board_of_another_major_version_is_refused(board_rig):
     assert 'protocol version mismatch' in values['device refused'], values
     assert 'speaks 2.2' in values['device refused'], values
     assert len(r.pressures) == 0 and values['connected'] == 'false', values
+
+
+# ---- a lab's path: pam-bringup --rig driver on the board (firmware/README.md) -----------------
+def lab_params(tmp_path, port: str) -> Path:
+    """What firmware/README.md tells a lab to write: a copy of pam-bringup's params file with
+    driver_node's port and calibration set to the board's, and the 0.5 s command watchdog it
+    advises for the emulated board on a shared machine (its other settings the file's)."""
+    data = yaml.safe_load(default_params_file().read_text())
+    data['/pam/driver_node']['ros__parameters'].update(
+        port=port, calibration_file=str(CALIBRATION), watchdog_timeout=0.5)
+    path = tmp_path / 'my_board.yaml'
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_pam_bringup_rig_driver_on_the_board(node_process, probe, ros_domain, tmp_path):
+    """`pam-bringup --rig driver --params-file my_board.yaml` on a fresh board (empty EEPROM:
+    the firmware's defaults) as the firmware README has a lab run it: the whole stack (composed,
+    the default) connects, pam-bringup arms driver_node once pi_node's commands flow (the board
+    announced 1.2: ARM sent with it), the estimate flows and pi_node's commands reach the board's
+    DAC; Ctrl-C stops it cleanly."""
+    board = SimBoard(tmp_path, ('--mismatch', 'mild'), name='lab')
+    try:
+        estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=100)
+        applied = probe.subscribe(ValveCommand, '/pam/driver_node/applied_command', depth=100)
+        run = node_process('pam-bringup', 'pam_bringup', '--domain-id', str(ros_domain),
+                           '--rig', 'driver', '--params-file',
+                           str(lab_params(tmp_path, board.link)), raw=True)
+        run.wait_for(lambda: '/pam/driver_node/arm: armed' in run.stdout, STARTUP + 30.0,
+                     'pam-bringup arming driver_node')
+        arming = next(line for line in run.stdout.splitlines() if 'driver_node/arm: armed' in line)
+        assert 'ARM sent to the board' in arming, arming
+        assert f'connected to {board.link}: protocol 1.2' in run.stdout, run.stdout[-3000:]
+        run.wait_for(lambda: len(estimates) >= 100, 10.0, '/pam/estimate flowing')
+        run.wait_for(lambda: any((m.u1, m.u2) != (0.0, 0.0) for m in applied.messages()), 10.0,
+                     "pi_node's commands applied by driver_node")
+        start = board.status()
+        status = board.wait_status(
+            lambda s: s['command_frames'] >= start['command_frames'] + 500
+            and s['dac_codes'] != [0, 0], 10.0, "pi_node's commands on the board's DAC")
+        assert status['resets'] == 0, status
+        assert run.alive() and 'died' not in run.stdout, run.stdout[-3000:]
+        run.proc.send_signal(signal.SIGINT)
+        code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+        assert code == 0, run.stdout[-3000:] + run.stderr[-2000:]
+        assert 'all nodes stopped cleanly' in run.stdout, run.stdout[-3000:]
+    finally:
+        board.stop()
 
 
 # ---- the closed loop through the board against the same loop through pam-emulator ------------

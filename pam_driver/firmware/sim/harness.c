@@ -102,10 +102,10 @@ static void pty_open(void)
         if (symlink(pty_path, tmp) || rename(tmp, link_path))
             perror("pam-board-sim: link");
     }
-    printf("pam-board-sim: device: %s%s%s\n", pty_path, link_path ? " (link " : "",
-           link_path ? link_path : "");
     if (link_path)
-        printf(")\n");
+        printf("pam-board-sim: device: %s (link %s)\n", pty_path, link_path);
+    else
+        printf("pam-board-sim: device: %s\n", pty_path);
     fflush(stdout);
 }
 
