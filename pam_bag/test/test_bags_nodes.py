@@ -338,7 +338,7 @@ def test_clock_publishes_the_bag_time_at_the_requested_rate(node_process, probe,
     from rosgraph_msgs.msg import Clock
     clock = probe.subscribe(Clock, '/clock', depth=1000)
     # resumed once the probe sees the /clock publisher: a fixed delay can end before DDS has
-    # matched the pair (up to one 3 s announcement period, README "Start-up discovery")
+    # matched the pair (up to one 3 s announcement period, docs/nodes.md "Start-up discovery")
     player = resumed_player(node_process, probe, '/clock', '-p', f'bag:={small_bag}', '-p',
                             'clock:=50.0', '-p', 'rate:=2.0')
     resumed = time.monotonic()

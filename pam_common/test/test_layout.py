@@ -1,5 +1,5 @@
-"""The packages' layout (README "Architecture"), read from the sources with ast (an import
-inside a function counts):
+"""The packages' layout (docs/architecture.md "Architecture"), read from the sources with ast (an
+import inside a function counts):
 
 (a) production code never imports test support: no installed module (a package's modules and
     launch files, test support modules excepted) imports a package's `testing` module;

@@ -36,8 +36,15 @@ def parse_args(argv=None) -> argparse.Namespace:
                     'bag_record): OUT/locked_<angle>deg per lock angle (profile '
                     'calibration_locked) and OUT/free (calibration_free). Optionally also '
                     'validation bags of the validation profile with another seed.')
-    parser.add_argument('out', metavar='OUT', help='directory for the bags (created; bags in it '
-                                                   'must not exist yet)')
+    parser.add_argument('out', metavar='OUT', nargs='?',
+                        help='directory for the bags (created; bags in it must not exist yet); '
+                             'not with --plan')
+    parser.add_argument('--plan', action='store_true',
+                        help='write nothing: print the planned runs and the expected 1-sigma of '
+                             'every parameter pam-identify fits from them, at the prior (--params '
+                             'and --valve-map; the campaign simulated on that model and read '
+                             'through the sensor of --scenario, default the mild one: the fits\' '
+                             'own Fisher information), and what the campaign cannot identify')
     add_model_arguments(parser, laws=False)
     plan = CampaignPlan()
     parser.add_argument('--angles', type=float_list, default=plan.lock_angles, metavar='DEG,...',
@@ -56,7 +63,36 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--validation', type=float, default=0.0, metavar='S',
                         help='also write validation_free and validation_locked: S seconds of the '
                              'validation profile with seed+1 (default: none)')
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.out is None and not args.plan:
+        parser.error('OUT is required (or --plan)')
+    return args
+
+
+#: The sensor --plan reads the campaign through when --scenario names none: the 'mild' one.
+PLAN_SENSOR_SCENARIO = 'mild'
+
+
+def print_plan(args, plan: CampaignPlan) -> int:
+    """--plan: the runs, their length, and the expected uncertainty of every fitted parameter."""
+    from pam_model.identification.identify import expected_fits, format_plan
+    from pam_model.mismatch import load_scenario
+    from pam_model.model import PamModel
+    from pam_model.parameters import load_parameters
+    from pam_model.valve_map import load_valve_map
+    prior = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.valve_map))
+    sensor_of = args.scenario or PLAN_SENSOR_SCENARIO
+    sensor = load_scenario(sensor_of).sensor
+    runs = simulate_campaign(prior, sensor, plan)
+    total = sum(len(run.t) for _, run in runs) * prior.h
+    print(f'pam-calibration-bags --plan: {len(runs)} runs, {total:.0f} s of rig time')
+    for name, run in runs:
+        print(f'  {name}: {len(run.t) * prior.h:.1f} s, {"locked" if run.locked else "free"} '
+              'joint')
+    print(f"expected at the prior {args.params!r}, read through the sensor of '{sensor_of}' "
+          f'(noise {sensor.noise_std:g} Pa, {sensor.bits}-bit ADC):', flush=True)
+    print(format_plan(expected_fits(prior, sensor, plan)))
+    return 0
 
 
 def body(argv=None) -> int:
@@ -64,6 +100,8 @@ def body(argv=None) -> int:
     model, scenario = build_model(args)
     plan = CampaignPlan(lock_angles=args.angles, hold=args.hold, pair_hold=args.pair_hold,
                         voltages=args.voltages, free_duration=args.free_duration, seed=args.seed)
+    if args.plan:
+        return print_plan(args, plan)
     # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor
     runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects)
     if args.validation > 0.0:

@@ -152,7 +152,10 @@ def fit_flow(records, prior, valve_map, dead_volume: bool = False):
                  for n, a, s, a0 in zip(AREA_NAMES, areas, z_std[:4], areas0, strict=True)]
     if fit_k2:
         estimates.append(Estimate('k2', float(k2), float(prior.k2 * z_std[4]), prior.k2, '-'))
-    check_identified(estimates, 'valve flow')
+    try:
+        check_identified(estimates, 'valve flow')
+    except NotIdentifiable as gap:     # the fit is dropped as a whole: the areas keep their prior
+        raise NotIdentifiable(gap.what, [e.name for e in estimates]) from None
     if volume_estimate is not None:
         estimates.append(volume_estimate)
     changes = dict(zip(AREA_FIELDS, map(float, areas), strict=True))

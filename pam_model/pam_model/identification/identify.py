@@ -197,3 +197,38 @@ def format_report(ident: Identification, prior: Parameters, truth: Parameters | 
         lines += ['', f'extensions kept (extensions.yaml): {ident.extensions.describe()}']
     return '\n'.join(lines).lstrip('\n')
 
+
+
+def expected_fits(model, sensor, plan, extensions: bool = True) -> Identification:
+    """What a campaign planned as `plan` (campaign.CampaignPlan) would identify, expected at the
+    prior: the campaign simulated on `model` (the prior: its parameters, valve map and the
+    paper's equations) read through `sensor` (pam_model.sensor.PressureSensor: the noise and
+    ADC the real transducers add), then identified from that same prior (partial). Each
+    Estimate's std is then the fit's own 1-sigma at the prior (its Jacobian and the residuals the
+    sensor noise leaves: the Fisher information of the fit), and `missing` lists what the
+    campaign cannot identify at all. A lab reads it before running anything on its rig."""
+    from .campaign import records_of, simulate_campaign
+    runs = simulate_campaign(model, sensor, plan)
+    return identify(records_of(runs), model.params, model.valve_map, partial=True,
+                    extensions=extensions)
+
+
+def format_plan(ident: Identification) -> str:
+    """expected_fits' result as a table: each identified quantity's prior value, expected 1-sigma
+    and its size relative to the value, then what the campaign leaves unidentified."""
+    lines = [f'{"quantity":<24}{"unit":<9}{"prior":>11}{"expected 1 sigma":>18}{"relative":>10}']
+    for fit in ident.fits:
+        lines.append(f'{fit.group}:')
+        for e in fit.estimates:
+            if not math.isfinite(e.std):
+                lines.append(f'  {e.name:<22}{e.unit:<9}{_format_value(e.prior)}'
+                             f'{"-":>18}{"":>10}  {e.note}')
+                continue
+            relative = abs(e.std / e.prior) if e.prior else math.inf
+            text = f'{100.0 * relative:9.3g}%' if math.isfinite(relative) else f'{"-":>10}'
+            lines.append(f'  {e.name:<22}{e.unit:<9}{_format_value(e.prior)}'
+                         f'{e.std:18.4g}{text}')
+    if ident.missing:
+        lines.append('not identifiable with this campaign (kept at the prior):')
+        lines.append(describe_missing(ident.missing))
+    return '\n'.join(lines)
