@@ -1,15 +1,17 @@
 """pam-calibration-bags --plan, run as a user runs it: the planned runs and the expected 1-sigma
 of every parameter pam-identify would fit, before anything runs on a rig; nothing written."""
 
-import shutil
 import subprocess
+
+from pam_common.testing import executable
 
 SHORT = ['--angles=-15,15', '--hold', '3', '--pair-hold', '2', '--free-duration', '20']
 
 
 def run(*args, cwd):
-    return subprocess.run([shutil.which('pam-calibration-bags'), *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=300, check=False)
+    tool = str(executable('pam-calibration-bags', 'pam_estimator'))
+    return subprocess.run([tool, *args], cwd=cwd, capture_output=True, text=True, timeout=300,
+                          check=False)
 
 
 def test_the_plan_prints_the_runs_and_the_expected_uncertainties(tmp_path):
