@@ -332,9 +332,11 @@ class SimNode(LinkedNode):
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ValveCommand) -> None:
         out = self.core.on_command(msg.u1, msg.u2, stamp_ns(msg.header.stamp), time.time_ns())
-        if out.sample is not None:
-            self.core.stats.record(0.0)
-            self._publish(self._messages(out.sample))
+        if self._lockstep and not out.past:              # it stepped the plant
+            messages = self._messages(out.sample)         # None: a non-finite sample, logged
+            if messages is not None:
+                self.core.stats.record(0.0)
+                self._publish(messages)
         if out.applied is not None and self._marked_change(out.applied) and \
                 self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
             self._debug_command(out.applied, out.received, out.step)

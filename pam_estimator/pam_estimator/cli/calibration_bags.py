@@ -91,17 +91,17 @@ def print_plan(args, plan: CampaignPlan) -> int:
               'joint')
     print(f"expected at the prior {args.params!r}, read through the sensor of '{sensor_of}' "
           f'(noise {sensor.noise_std:g} Pa, {sensor.bits}-bit ADC):', flush=True)
-    print(format_plan(expected_fits(prior, sensor, plan)))
+    print(format_plan(expected_fits(prior, runs)))
     return 0
 
 
 def body(argv=None) -> int:
     args = parse_args(argv)
-    model, scenario = build_model(args)
     plan = CampaignPlan(lock_angles=args.angles, hold=args.hold, pair_hold=args.pair_hold,
                         voltages=args.voltages, free_duration=args.free_duration, seed=args.seed)
     if args.plan:
         return print_plan(args, plan)
+    model, scenario = build_model(args)
     # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor
     runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects)
     if args.validation > 0.0:

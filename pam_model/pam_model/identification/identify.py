@@ -199,16 +199,15 @@ def format_report(ident: Identification, prior: Parameters, truth: Parameters | 
 
 
 
-def expected_fits(model, sensor, plan, extensions: bool = True) -> Identification:
-    """What a campaign planned as `plan` (campaign.CampaignPlan) would identify, expected at the
-    prior: the campaign simulated on `model` (the prior: its parameters, valve map and the
-    paper's equations) read through `sensor` (pam_model.sensor.PressureSensor: the noise and
-    ADC the real transducers add), then identified from that same prior (partial). Each
-    Estimate's std is then the fit's own 1-sigma at the prior (its Jacobian and the residuals the
-    sensor noise leaves: the Fisher information of the fit), and `missing` lists what the
-    campaign cannot identify at all. A lab reads it before running anything on its rig."""
-    from .campaign import records_of, simulate_campaign
-    runs = simulate_campaign(model, sensor, plan)
+def expected_fits(model, runs, extensions: bool = True) -> Identification:
+    """What a planned campaign would identify, expected at the prior: `runs`, the campaign
+    simulated on `model` (the prior: its parameters, valve map and the paper's equations) and
+    read through the transducers' noise and ADC (campaign.simulate_campaign with the sensor),
+    identified from that same prior (partial). Each Estimate's std is then the fit's own 1-sigma
+    at the prior (its Jacobian and the residuals the noise leaves: the Fisher information of the
+    fit), and `missing` lists what the campaign cannot identify at all. A lab reads it before
+    running anything on its rig."""
+    from .campaign import records_of
     return identify(records_of(runs), model.params, model.valve_map, partial=True,
                     extensions=extensions)
 
