@@ -71,3 +71,52 @@ def _spin_with_a_failing_callback(stop_requested: bool):
 def test_an_executor_error_after_a_stop_signal_is_the_stop():
     assert _spin_with_a_failing_callback(stop_requested=True) is None
     assert isinstance(_spin_with_a_failing_callback(stop_requested=False), RuntimeError)
+
+
+def _overloaded_spin(stop_after: float | None, finish_after: float | None) -> float:
+    """spin() on a real EventsExecutor that cannot keep up (a timer publishes 3 messages a ms
+    to a subscription whose callback takes 1 ms), stopped `stop_after` s in (a stop request, as
+    the signal handler records it) or with `until` completed `finish_after` s in, from another
+    thread. Returns how long spin() took to return after that."""
+    from rclpy.task import Future
+    from std_msgs.msg import Float64
+
+    from pam_common.executors import StopSignals, is_events_executor, make_executor, spin
+    context = fresh_context()
+    node = rclpy.create_node('overloaded', context=context)
+    publisher = node.create_publisher(Float64, 'load', 1000)
+
+    def busy(_msg):
+        end = time.perf_counter() + 0.001
+        while time.perf_counter() < end:
+            pass
+    node.create_subscription(Float64, 'load', busy, 1000)
+    node.create_timer(0.001, lambda: [publisher.publish(Float64(data=1.0)) for _ in range(3)])
+    executor = make_executor(context=context)
+    assert is_events_executor(executor)
+    executor.add_node(node)
+    stop, until, asked = StopSignals(), Future(), []
+
+    def ask():
+        time.sleep(stop_after if stop_after is not None else finish_after)
+        asked.append(time.monotonic())
+        if stop_after is not None:
+            stop.requested = 2              # SIGINT, as the handler records it
+        else:
+            until.set_result(True)
+    threading.Thread(target=ask, daemon=True).start()
+    try:
+        spin(executor, stop, until=until, context=context)
+        return time.monotonic() - asked[0]
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        context.shutdown()
+
+
+def test_an_overloaded_executor_stops_soon_after_the_request():
+    """With callbacks always ready, the EventsExecutor's slice does not end at its timeout (one
+    lasted 3 to 7 s, and so did Ctrl-C of an overloaded composed stack): the stop request ends
+    it at the next callback boundary."""
+    assert _overloaded_spin(stop_after=3.0, finish_after=None) < 1.0
+    assert _overloaded_spin(stop_after=None, finish_after=3.0) < 1.0
