@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates the reference bags in bags/ by recording the live stack (real processes over DDS),
-# always sim_node (mismatch:=mild, realtime, 1 kHz) + ukf_node (nominal model) + bag_record:
+# always sim_node (scenario:=mild, realtime, 1 kHz) + ukf_node (nominal model) + bag_record:
 #   free, locked    validation_mild_MODE: + profile_player (the 130 s validation profile, open
 #                   loop), free or locked joint; topics /pam/pressures, valve_command,
 #                   joint_measured; split into files of at most 4 MB (~15 MB in all)
@@ -44,7 +44,7 @@ wait_log() {
 
 # rig JOINT: sim_node (mild plant) and ukf_node, in the background
 rig() {
-  sim_node --ros-args -p mismatch:=mild -p joint_mode:="$1" >"$LOGDIR/$NAME.sim.log" 2>&1 &
+  sim_node --ros-args -p scenario:=mild -p joint_mode:="$1" >"$LOGDIR/$NAME.sim.log" 2>&1 &
   PIDS+=("$!")
   ukf_node --ros-args -p joint_mode:="$1" >"$LOGDIR/$NAME.ukf.log" 2>&1 &
   PIDS+=("$!")

@@ -9,9 +9,10 @@ from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
 from pam_model.parameters import load_parameters
 from pam_model.profiles import validation_profile
+from pam_model.rest import REST_STATE
 from pam_model.simulate import simulate
 
-X0 = (0.0, 0.0, 4.5e5, 4.5e5)
+X0 = REST_STATE
 
 
 def scenario_runs(seed: int = 0, duration: float = 130.0):

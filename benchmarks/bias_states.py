@@ -28,9 +28,10 @@ from pam_model.model_extensions import (
 )
 from pam_model.parameters import load_parameters
 from pam_model.profiles import validation_profile
+from pam_model.rest import REST_STATE
 from pam_model.simulate import simulate
 
-X0 = (0.0, 0.0, 4.5e5, 4.5e5)
+X0 = REST_STATE
 SEED = 1
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from pam_model.model import PamModel
 from pam_model.profiles import validation_profile
+from pam_model.rest import REST_STATE
 from pam_model.sensor import PressureSensor
 from pam_model.simulate import simulate
 
@@ -28,7 +29,7 @@ def main():
 
     model = PamModel()
     profile = validation_profile(0)
-    x0 = [0.0, 0.0, 4.5e5, 4.5e5]
+    x0 = list(REST_STATE)
     sensor = PressureSensor(2000.0, 12)
     duration = len(profile.t) * model.h
 

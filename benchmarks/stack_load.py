@@ -81,7 +81,7 @@ def params_file(folder: Path, ports: dict[str, str], scenario: str | None = None
            for key, section in data.items()}
     out['/**/driver_node']['ros__parameters'].pop('port', None)
     if scenario:
-        out['/**/sim_node']['ros__parameters']['mismatch'] = scenario
+        out['/**/sim_node']['ros__parameters']['scenario'] = scenario
     if identified is not None:
         from pam_estimator.calibration_runs import identified_ukf_parameters
         out['/**/ukf_node']['ros__parameters'].update(identified_ukf_parameters(identified))
@@ -295,7 +295,7 @@ def kernels_per_sample(scenario: str | None, identified: Path | None,
     sim = stack['/pam/sim_node']['ros__parameters']
     pi = stack['/pam/pi_node']['ros__parameters']
     nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
-    plan = load_scenario(scenario or sim['mismatch'])
+    plan = load_scenario(scenario or sim['scenario'])
     plant = PamModel(params=plan.apply(nominal.params), valve_map=nominal.valve_map)
     x0 = sim['initial_state']
     rig = SimulatedRig(plant, x0, plan.sensor, 0, tuple(sim['initial_command']),

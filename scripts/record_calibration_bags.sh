@@ -145,7 +145,7 @@ wait_log() {
 # rig JOINT ANGLE_RAD: sim_node or driver_node, in the background
 rig() {
   if [ "$RIG" = sim ]; then
-    sim_node --ros-args -p mismatch:="$MISMATCH" -p joint_mode:="$1" \
+    sim_node --ros-args -p scenario:="$MISMATCH" -p joint_mode:="$1" \
       -p "initial_state:=[$2, 0.0, 450000.0, 450000.0]" >"$LOGDIR/$NAME.rig.log" 2>&1 &
   else
     local params=()

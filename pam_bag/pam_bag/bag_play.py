@@ -32,6 +32,7 @@ import queue
 import sys
 import threading
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from rclpy.duration import Duration
@@ -44,7 +45,14 @@ from pam_bag.bag_record import message_class, split_list
 from pam_bag.bags import EXIT_BAD_INPUT, BagError, open_bag
 from pam_bag.read_ahead import END, ReadAhead
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    ConfigError,
+    NodeConfig,
+    ParamSpec,
+    check_all,
+    usage_text,
+)
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import CLOCK_QOS
 from pam_common.stamps import ns_pair
@@ -101,17 +109,44 @@ def parse_remap(text: str) -> dict[str, str]:
     return result
 
 
+@dataclass(frozen=True)
+class PlayOptions(NodeConfig):
+    """bag_play's checked parameters (the table above: units, ranges, defaults), as rosbag2's
+    PlayOptions."""
+
+    bag: str
+    rate: float
+    loop: bool
+    topics: str
+    remap: str
+    start_offset: float
+    start_paused: bool
+    clock: float
+    delay: float
+    wait_for_subscribers: float
+    read_ahead_size: int
+    wait_for_all_acked: float
+    hardware_id: str
+
+
+def build_config(values: dict) -> PlayOptions:
+    """Check the values against the table (a bag is given, the remap rules parse); ConfigError
+    names the parameter."""
+    check_all(PARAMETERS, values)
+    if not values['bag']:
+        raise ConfigError("parameter 'bag': give the bag directory (-p bag:=PATH)")
+    parse_remap(values['remap'])
+    return PlayOptions.from_values(values)
+
+
 class BagPlayer(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        values = parameter_values(self, PARAMETERS)
-        self.values = values
-        if not values['bag']:
-            raise ConfigError("parameter 'bag': give the bag directory (-p bag:=PATH)")
-        remap = parse_remap(values['remap'])
-        topics = split_list(values['topics']) or None
+        self.config = config = parameter_values(self, PARAMETERS, check=build_config)
+        remap = parse_remap(config.remap)
+        topics = split_list(config.topics) or None
         try:
-            self.bag = open_bag(values['bag'], topics, values['start_offset'])
+            self.bag = open_bag(config.bag, topics, config.start_offset)
         except BagError as exc:
             raise ConfigError(str(exc)) from exc
         self.publishers_by_index = []
@@ -130,7 +165,7 @@ class BagPlayer(Node):
                 'definition (or the type is not in the typestore): not checked against the '
                 'installed types; a subscriber receives nothing if they differ')
         self.clock_pub = None
-        if values['clock'] > 0.0:
+        if config.clock > 0.0:
             from rosgraph_msgs.msg import Clock
             self.clock_pub = self.create_publisher(Clock, CLOCK, CLOCK_QOS)
             self._clock_msg = Clock
@@ -146,18 +181,18 @@ class BagPlayer(Node):
         self.sent_unmatched = [0] * len(self.publishers_by_index)
         self.exit_code = 0
         self._running = threading.Event()
-        if not values['start_paused']:
+        if not config.start_paused:
             self._running.set()
         self._quit = threading.Event()
-        DiagnosticsPublisher(self, 'bag player', values['hardware_id'], self._report)
+        DiagnosticsPublisher(self, 'bag player', config.hardware_id, self._report)
         self._thread = threading.Thread(target=self._play, name='bag_play', daemon=True)
         self._thread.start()
-        offset = values['start_offset']
+        offset = config.start_offset
         self.get_logger().info(
             f'playing {len(self.bag.topic_names)} topics ({self.bag.message_count} messages) '
             f'of {self.bag.path}' + (f' from {offset:g} s in' if offset else '') +
-            f' at rate {values["rate"]:g}' +
-            (' (paused: call ~/resume)' if values['start_paused'] else ''))
+            f' at rate {config.rate:g}' +
+            (' (paused: call ~/resume)' if config.start_paused else ''))
 
     def _report(self):
         """/diagnostics: messages played of the bag's, paused, sent before a subscriber
@@ -166,8 +201,8 @@ class BagPlayer(Node):
         lost = sum(self.sent_unmatched)
         paused = not self._running.is_set()
         values = {'bag': str(self.bag.path), 'messages played': self.published,
-                  'messages in the bag': total, 'paused': paused, 'rate': self.values['rate'],
-                  'loop': self.values['loop'],
+                  'messages in the bag': total, 'paused': paused, 'rate': self.config.rate,
+                  'loop': self.config.loop,
                   'sent before a subscriber matched': lost, 'read-ahead waits': self.read_waits}
         if self.exit_code:
             return ERROR, 'stopped at a damaged chunk', values
@@ -220,7 +255,7 @@ class BagPlayer(Node):
         if debug:
             self.get_logger().debug(f'paused at bag time {(bag_ns - self.bag.first_ns) * 1e-9:.3f}'
                                     f' s ({self.published} messages published)')
-        period = 1.0 / self.values['clock'] if self.clock_pub is not None else 0.1
+        period = 1.0 / self.config.clock if self.clock_pub is not None else 0.1
         while not self._running.is_set() and not self._quit.is_set():
             if self.clock_pub is not None:
                 self._publish_clock(bag_ns)
@@ -239,7 +274,7 @@ class BagPlayer(Node):
         """Block until every publisher has a matched subscription, at most
         `wait_for_subscribers` s; on timeout log the topics without one and go on."""
         start = time.monotonic()
-        end = start + self.values['wait_for_subscribers']
+        end = start + self.config.wait_for_subscribers
         while not self._quit.is_set():
             missing = [pub.topic_name for pub in self.publishers_by_index
                        if pub.get_subscription_count() == 0]
@@ -269,7 +304,7 @@ class BagPlayer(Node):
         """Messages a reliable subscriber has not yet acknowledged are lost when the process
         exits: wait for them (at most `wait_for_all_acked` s in all). Not after Ctrl-C/SIGTERM:
         the ROS context is shut down then, and so are the publishers."""
-        end = time.monotonic() + self.values['wait_for_all_acked']
+        end = time.monotonic() + self.config.wait_for_all_acked
         for pub in self.publishers_by_index:
             left = end - time.monotonic()
             if left <= 0 or not self.context.ok():
@@ -285,10 +320,10 @@ class BagPlayer(Node):
     def _play(self) -> None:
         source = None
         try:
-            time.sleep(self.values['delay'])
-            if not self.values['start_paused'] and self.values['wait_for_subscribers'] > 0:
+            time.sleep(self.config.delay)
+            if not self.config.start_paused and self.config.wait_for_subscribers > 0:
                 self._wait_for_subscribers()
-            source = ReadAhead(self._passes(), capacity=self.values['read_ahead_size'],
+            source = ReadAhead(self._passes(), capacity=self.config.read_ahead_size,
                                name='bag_read')
             self._play_passes(source)
         except BagError as exc:     # a damaged chunk: what came before it was played
@@ -308,7 +343,7 @@ class BagPlayer(Node):
                 played = True
                 yield item
             yield None
-            if not (self.values['loop'] and played):
+            if not (self.config.loop and played):
                 return
 
     def _next(self, source):
@@ -321,8 +356,8 @@ class BagPlayer(Node):
         return END
 
     def _play_passes(self, source) -> None:
-        rate = self.values['rate']
-        clock_period = (1e9 / self.values['clock']) if self.clock_pub is not None else None
+        rate = self.config.rate
+        clock_period = (1e9 / self.config.clock) if self.clock_pub is not None else None
         pubs, lateness, matched = self.publishers_by_index, self.lateness_ns, self.matched
         first = self.bag.first_ns
         item = self._next(source)

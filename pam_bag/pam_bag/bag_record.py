@@ -21,6 +21,7 @@ import datetime
 import sys
 import threading
 import time
+from dataclasses import dataclass
 
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
@@ -29,7 +30,14 @@ from rclpy.task import Future
 
 from pam_bag.bags import BagError, BagWriteError, BagWriter, check_split, known_type, qos_from_ints
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    ConfigError,
+    NodeConfig,
+    ParamSpec,
+    check_all,
+    usage_text,
+)
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.stamps import ns_pair
 
@@ -88,26 +96,49 @@ def _duration_pair(duration) -> tuple[int, int]:
     return ns_pair(getattr(duration, 'nanoseconds', 0))
 
 
+@dataclass(frozen=True)
+class RecordOptions(NodeConfig):
+    """bag_record's checked parameters (the table above: units, ranges, defaults), as
+    rosbag2's RecordOptions."""
+
+    output: str
+    topics: str
+    prefixes: str
+    compression: str
+    chunk_interval: float
+    max_bag_size: int
+    max_bag_duration: float
+    discovery_period: float
+    duration: float
+    hardware_id: str
+
+
+def build_config(values: dict) -> RecordOptions:
+    """Check the values against the table and the split limits; ConfigError names the
+    parameter."""
+    check_all(PARAMETERS, values)
+    try:
+        check_split(values['max_bag_size'], values['max_bag_duration'])
+    except BagError as exc:
+        raise ConfigError(f'parameter {exc}') from exc
+    return RecordOptions.from_values(values)
+
+
 class BagRecorder(Node):
     """Discovers topics, subscribes raw, queues (topic, t_ns, bytes) for the writer thread."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        values = parameter_values(self, PARAMETERS)
-        self.values = values
-        output = values['output'] or datetime.datetime.now().strftime(
+        self.config = config = parameter_values(self, PARAMETERS, check=build_config)
+        output = config.output or datetime.datetime.now().strftime(
             'rosbag2_%Y_%m_%d-%H_%M_%S')
-        self.explicit = split_list(values['topics'])
-        self.prefixes = split_list(values['prefixes'])
+        self.explicit = split_list(config.topics)
+        self.prefixes = split_list(config.prefixes)
         try:
-            check_split(values['max_bag_size'], values['max_bag_duration'])
-        except BagError as exc:
-            raise ConfigError(f'parameter {exc}') from exc
-        try:
-            self.bag = BagWriter(output, compression=values['compression'],
-                                 chunk_interval=values['chunk_interval'],
-                                 max_bag_size=values['max_bag_size'],
-                                 max_bag_duration=values['max_bag_duration'])
+            self.bag = BagWriter(output, compression=config.compression,
+                                 chunk_interval=config.chunk_interval,
+                                 max_bag_size=config.max_bag_size,
+                                 max_bag_duration=config.max_bag_duration)
         except BagError as exc:
             raise ConfigError(f"parameter 'output': {exc}") from exc
         self.finished = Future()
@@ -119,10 +150,10 @@ class BagRecorder(Node):
         self._writer = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
         self._writer.start()
         self._discover()
-        self.create_timer(values['discovery_period'], self._discover)
-        if values['duration'] > 0.0:
-            self._stop_timer = self.create_timer(values['duration'], self._on_duration)
-        DiagnosticsPublisher(self, 'bag recorder', values['hardware_id'], self._report)
+        self.create_timer(config.discovery_period, self._discover)
+        if config.duration > 0.0:
+            self._stop_timer = self.create_timer(config.duration, self._on_duration)
+        DiagnosticsPublisher(self, 'bag recorder', config.hardware_id, self._report)
         what = ', '.join(self.explicit) if self.explicit else (
             'everything under ' + ', '.join(self.prefixes))
         self.get_logger().info(f'recording {what} into {self.bag.path}')

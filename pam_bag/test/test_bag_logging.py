@@ -51,3 +51,15 @@ def test_summaries_at_info_and_split_files_at_debug(node_process, probe, tmp_pat
                for line in log_lines(player.stderr, 'DEBUG')), player.stderr
     assert any(': published ' in line and ' messages; send lateness p50 ' in line
                for line in log_lines(player.stderr, 'INFO', 'bag_play')), player.stderr
+
+
+def test_the_recorder_and_player_keep_synchronous_publication():
+    """Finite tools publish their summary just before they exit: their processes keep FastDDS's
+    synchronous publication (pam_common.executors.finite_tool), or the summary's /rosout lines
+    were lost with the asynchronous writer at exit (the first test above, once in CI)."""
+    from pam_bag.bag_play import BagPlayer
+    from pam_bag.bag_record import BagRecorder
+    from pam_common.executors import Component, finite_tool
+    assert finite_tool(Component('bag_record', BagRecorder))
+    assert finite_tool(Component('bag_play', BagPlayer))
+    assert not finite_tool(Component('other', object))

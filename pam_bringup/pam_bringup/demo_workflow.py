@@ -106,7 +106,7 @@ def run_params(base: dict, scenario: str, identified: Path | None) -> dict:
         data.setdefault(f'/pam/{node}', {}).setdefault('ros__parameters', {})[
             'thread_priority'] = REALTIME_PRIORITY
     sim = data.setdefault('/pam/sim_node', {}).setdefault('ros__parameters', {})
-    sim['mismatch'] = scenario
+    sim['scenario'] = scenario
     if identified is not None:
         from pam_estimator.calibration_runs import identified_ukf_parameters
         data.setdefault('/pam/ukf_node', {}).setdefault('ros__parameters', {}).update(

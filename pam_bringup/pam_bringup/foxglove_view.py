@@ -21,6 +21,7 @@ import logging
 import sys
 import threading
 import time
+from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Log
@@ -30,7 +31,14 @@ from rclpy.task import Future
 from sensor_msgs.msg import FluidPressure, JointState
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
-from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    ConfigError,
+    NodeConfig,
+    ParamSpec,
+    check_all,
+    usage_text,
+)
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import VIEW_QOS
 from pam_common.topics import DEFAULT_NAMESPACE
@@ -160,6 +168,23 @@ class _Subscribers:
 MATCH_PERIOD = 0.1
 
 
+@dataclass(frozen=True)
+class ViewConfig(NodeConfig):
+    """The live view's checked parameters (the table above)."""
+
+    host: str
+    port: int
+    topics: str
+    hardware_id: str
+
+
+def build_config(values: dict) -> ViewConfig:
+    """Check the values against the table (and the host); ConfigError names the parameter."""
+    check_all(PARAMETERS, values)
+    values['host'] = check_host(values['host'])    # stripped, resolvable
+    return ViewConfig.from_values(values)
+
+
 class FoxgloveView(Node):
     """Subscribes the selected topics raw, each while a client subscribes to its channel, and
     logs each message on its Foxglove channel."""
@@ -167,9 +192,9 @@ class FoxgloveView(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = values = parameter_values(self, PARAMETERS)
-        host = check_host(values['host'])
-        served = select_topics(values['topics'], self.get_namespace())
+        self.config = config = parameter_values(self, PARAMETERS, check=build_config)
+        host = config.host
+        served = select_topics(config.topics, self.get_namespace())
         self.server = None
         self.counts: dict[str, int] = {}
         logger = self.get_logger()
@@ -179,11 +204,11 @@ class FoxgloveView(Node):
         self._subscribers = _Subscribers(self.get_logger())
         try:
             self.server = foxglove.start_server(
-                name=f'{PROG} {self.get_namespace()}', host=host, port=values['port'],
+                name=f'{PROG} {self.get_namespace()}', host=host, port=config.port,
                 context=self._sdk_context, server_listener=self._subscribers)
         except RuntimeError as exc:
             problem = str(exc).removeprefix('FoxgloveError: ')
-            self.get_logger().error(f"cannot serve on {host}:{values['port']}: {problem}")
+            self.get_logger().error(f'cannot serve on {host}:{config.port}: {problem}')
             # a finished node (pam_common.executors.run_nodes): it ends at once, finish() gives
             # the exit code; a node that serves has no `finished` (an ordinary node)
             self.finished = Future()
@@ -206,7 +231,7 @@ class FoxgloveView(Node):
         # a topic is subscribed only while a client subscribes to its channel: nothing is
         # received (about 7000 messages/s at 1 kHz) while nobody watches
         self.create_timer(MATCH_PERIOD, self._match_clients)
-        DiagnosticsPublisher(self, 'Foxglove live view', values['hardware_id'], self._report)
+        DiagnosticsPublisher(self, 'Foxglove live view', config.hardware_id, self._report)
         self.get_logger().info(
             f"serving {len(served)} topic{'' if len(served) == 1 else 's'} of "
             f'{self.get_namespace()} on {self.url}: in Foxglove, Open connection -> Foxglove '

@@ -40,11 +40,11 @@ POLL = 0.2          # s, the waiting thread checks for dead nodes this often
 LOG_TAIL = 1500     # characters of each node's last output in an error
 
 
-def node_arguments(mode: str, first_level: float, joint: str, mismatch: str,
+def node_arguments(mode: str, first_level: float, joint: str, scenario: str,
                    seed: int) -> dict[str, list[str]]:
     """The ROS arguments of each node of the lockstep run, by node name."""
     return {
-        'sim_node': ['-p', 'timing:=lockstep', '-p', f'mismatch:={mismatch}',
+        'sim_node': ['-p', 'timing:=lockstep', '-p', f'scenario:={scenario}',
                      '-p', f'joint_mode:={joint}', '-p', f'seed:={seed}'],
         'ukf_node': ['-p', f'joint_mode:={joint}'],
         'pi_node': ['-p', f'mode:={mode}', '-p', f'initial_reference:={first_level}',
@@ -120,7 +120,7 @@ class _ReferenceNode:
 
 
 def run_lockstep_steps(mode: str, levels, hold: float, domain_id: int, seed: int = 0,
-                       mismatch: str = 'mild', timeout: float = 600.0,
+                       scenario: str = 'mild', timeout: float = 600.0,
                        diagnostics: dict | None = None) -> tuple:
     """Track `levels` (rad or N m), each held `hold` s of simulated time.
 
@@ -137,7 +137,7 @@ def run_lockstep_steps(mode: str, levels, hold: float, domain_id: int, seed: int
     lockstep_publication(env)
     env.pop('ROS_LOCALHOST_ONLY', None)
     nodes = stack_nodes('sim', reference=False, controller=True)
-    arguments = node_arguments(mode, float(levels[0]), 'locked' if torque else 'free', mismatch,
+    arguments = node_arguments(mode, float(levels[0]), 'locked' if torque else 'free', scenario,
                                seed)
     executables = locate_executables(nodes)
     children = [Child(n.name, [executables[n.name], '--ros-args', *arguments[n.name]], n.role)

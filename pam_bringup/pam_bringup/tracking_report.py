@@ -30,6 +30,7 @@ from __future__ import annotations
 import sys
 import time
 from bisect import bisect_right
+from dataclasses import dataclass
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -38,7 +39,13 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher, status_node, status_values
-from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    NodeConfig,
+    ParamSpec,
+    check_all,
+    usage_text,
+)
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import RECORD_QOS
 from pam_common.run_health import judge_run
@@ -95,16 +102,36 @@ RIG_STATUS_WAIT = 3.0       # s after the record for a rig status taken after it
 RESET_SERVICE_WAIT = 5.0    # s after the start of the record for the rig's ~/reset_statistics
 
 
+@dataclass(frozen=True)
+class ReportConfig(NodeConfig):
+    """tracking_report's checked parameters (the table above: units, ranges, defaults)."""
+
+    duration: float
+    start: str
+    plot: str
+    summary: str
+    title: str
+    transient: float
+    startup_timeout: float
+    rig: str
+    hardware_id: str
+
+
+def build_config(values: dict) -> ReportConfig:
+    """Check the values against the table; ConfigError names the parameter."""
+    return ReportConfig.from_values(check_all(PARAMETERS, values))
+
+
 class TrackingReport(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = parameter_values(self, PARAMETERS)
+        self.config = parameter_values(self, PARAMETERS, check=build_config)
         self.references = []        # (stamp ns, mode, value), in arrival order
         self.truth = {}             # stamp -> (angle, torque)
         self.estimates = {}         # stamp -> (angle, torque)
         self.estimate_samples = {}  # stamp -> the estimate's sample counter (0: not counted)
-        self.rig_name = (self.get_namespace().rstrip('/') + '/' + self.values['rig'])
+        self.rig_name = (self.get_namespace().rstrip('/') + '/' + self.config.rig)
         self.rig_status = None      # (monotonic receive time, key/values) of the rig's latest
         self.end_time = None        # monotonic time the record ended
         self._reset_client = None
@@ -120,10 +147,10 @@ class TrackingReport(Node):
         self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, RECORD_QOS)
         self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, RECORD_QOS)
         self.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RECORD_QOS)
-        self._timeout = self.create_timer(self.values['startup_timeout'], self._on_timeout)
-        DiagnosticsPublisher(self, 'tracking report', self.values['hardware_id'], self._report)
-        self.get_logger().info(f"recording {self.values['duration']:g} s of tracking after the "
-                               + ('first reference' if self.values['start'] == 'reference' else
+        self._timeout = self.create_timer(self.config.startup_timeout, self._on_timeout)
+        DiagnosticsPublisher(self, 'tracking report', self.config.hardware_id, self._report)
+        self.get_logger().info(f"recording {self.config.duration:g} s of tracking after the "
+                               + ('first reference' if self.config.start == 'reference' else
                                   'first change of the reference'))
 
     def _on_timeout(self):
@@ -142,7 +169,7 @@ class TrackingReport(Node):
         t = stamp_ns(msg.header.stamp)
         if not self.references:
             return
-        if self.values['start'] == 'step' and (self.step_ns is None or t < self.step_ns):
+        if self.config.start == 'step' and (self.step_ns is None or t < self.step_ns):
             return
         if self.end_time is not None:
             return
@@ -150,7 +177,7 @@ class TrackingReport(Node):
             self.first_ns = t
             self._reset_rig_statistics()
         self.truth[t] = (msg.angle, msg.torque)
-        if (t - self.first_ns) * 1e-9 >= self.values['duration'] and not self.finished.done():
+        if (t - self.first_ns) * 1e-9 >= self.config.duration and not self.finished.done():
             self.end_time = time.monotonic()     # wait for a rig status taken after the record
             self._wait_timer = self.create_timer(0.05, self._wait_for_rig_status)
 
@@ -204,14 +231,14 @@ class TrackingReport(Node):
         """/diagnostics: the seconds recorded of `duration`, the samples of each topic; WARN
         while no reference and measurement arrived."""
         recorded = ((max(self.truth) - self.first_ns) * 1e-9 if self.truth else 0.0)
-        values = {'recorded (s)': recorded, 'duration (s)': self.values['duration'],
+        values = {'recorded (s)': recorded, 'duration (s)': self.config.duration,
                   'references': len(self.references), 'measurements': len(self.truth),
                   'estimates': len(self.estimates), 'valve commands': len(self.commands)}
         if self.first_ns is None:
             return WARN, 'waiting for a reference and a measurement', values
         if self.finished.done():
             return OK, 'recording done', values
-        return OK, f"recording: {recorded:.1f} of {self.values['duration']:g} s", values
+        return OK, f"recording: {recorded:.1f} of {self.config.duration:g} s", values
 
     def series(self):
         """t (s), mode, reference, measured, estimate (nan where missing), commands (N, 2)."""
@@ -278,7 +305,7 @@ class TrackingReport(Node):
             m = metrics(measured[ok] * scale, estimate[ok] * scale)
             estimation['whole'] = m
             print(f'  estimation error ({ok.sum()} samples): {m.row(" " + unit)}', flush=True)
-            transient = self.values['transient']
+            transient = self.config.transient
             late = ok & after_transient(t, transient)
             if late.sum() > 1:
                 m = metrics(measured[late] * scale, estimate[late] * scale)
@@ -291,19 +318,19 @@ class TrackingReport(Node):
         print(f'  measurements received: {len(self.truth)}', flush=True)
         for line in health.lines():
             print('  ' + line, flush=True)
-        if self.values['plot']:
-            title = self.values['title'] + ('' if health.valid else
+        if self.config.plot:
+            title = self.config.title + ('' if health.valid else
                                             ' - INVALID: not real time, not a result')
             path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
-                                 commands, unit, self.values['plot'], title)
+                                 commands, unit, self.config.plot, title)
             print(f'  figure: {path}', flush=True)
-        if self.values['summary']:
+        if self.config.summary:
             summary = report_summary('angle' if angle else 'torque', unit, t, report, scale,
-                                     estimation, self.values['transient'])
+                                     estimation, self.config.transient)
             summary['measurements'] = len(self.truth)
             summary['health'] = health.as_dict()
             summary['valid'] = health.valid
-            path = write_json(self.values['summary'], summary)
+            path = write_json(self.config.summary, summary)
             print(f'  summary: {path}', flush=True)
         if interrupted:
             return 130

@@ -131,10 +131,10 @@ def test_rig_and_estimator_run_for_duration(node_process, probe, ros_domain, tmp
     assert set(started_pids(out)) == {'sim_node', 'ukf_node'}, out
     assert prefixed(out, 'sim_node') and prefixed(out, 'ukf_node'), out
     # the default params file (share/pam_controller/config/bringup.yaml) reached its sections
-    assert any("mismatch: 'mild'" in line for line in prefixed(out, 'sim_node')), out
+    assert any("scenario: 'mild'" in line for line in prefixed(out, 'sim_node')), out
     assert any('estimating:' in line for line in prefixed(out, 'ukf_node')), out
     assert 'all nodes stopped cleanly' in out
-    assert "mismatch: 'mild'" in (tmp_path / 'logs' / 'sim_node.log').read_text()
+    assert "scenario: 'mild'" in (tmp_path / 'logs' / 'sim_node.log').read_text()
     assert not (tmp_path / 'logs' / 'sim_node.log').read_text().startswith('[sim_node]')
 
 
@@ -157,13 +157,13 @@ def test_sigterm_stops_every_child(node_process, probe, ros_domain):
 def test_another_namespace_applies_the_params_files_sections(node_process, probe, ros_domain):
     """--namespace /joint2 with the default params file (keyed /pam/<node>): the nodes read
     the file's values, not their defaults, asked over ROS (~/get_parameters): sim_node's
-    mismatch is 'mild' in the file and '' by default, reference_node's repeat true and false
+    scenario is 'mild' in the file and '' by default, reference_node's repeat true and false
     (`<node> --help`)."""
     estimates = probe.subscribe(JointEstimate, '/joint2/estimate')
     run = bringup(node_process, ros_domain, '--no-controller', '--namespace', '/joint2')
     run.wait_for(lambda: len(estimates) > 0, STARTUP_TIMEOUT, 'the first /joint2/estimate')
-    values = get_parameters(probe, '/joint2/sim_node', ['mismatch', 'rate'])
-    assert values == {'mismatch': 'mild', 'rate': 1000.0}, values
+    values = get_parameters(probe, '/joint2/sim_node', ['scenario', 'rate'])
+    assert values == {'scenario': 'mild', 'rate': 1000.0}, values
     values = get_parameters(probe, '/joint2/reference_node', ['repeat', 'profile'])
     assert values == {'repeat': True, 'profile': 'steps'}, values
     out = run.stdout

@@ -41,7 +41,7 @@ def record(node_process, probe, bag, joint_mode, initial_state, player_args):
     run from its first sample and every command."""
     from pam_interfaces.msg import JointEstimate
     state = ', '.join(repr(float(v)) for v in initial_state)
-    sim = node_process('sim_node', 'pam_driver', '-p', 'mismatch:=mild', '-p', 'timing:=lockstep',
+    sim = node_process('sim_node', 'pam_driver', '-p', 'scenario:=mild', '-p', 'timing:=lockstep',
                        '-p', 'lockstep_timeout:=0.05', '-p', f'joint_mode:={joint_mode}',
                        '-p', f'initial_state:=[{state}]')
     rec = node_process('bag_record', 'pam_bag', '-p', f'output:={bag}', '-p',

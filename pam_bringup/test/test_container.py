@@ -131,7 +131,7 @@ def test_composed_stack_looks_like_the_separate_one(node_process, probe):
 
 def test_two_stacks_in_one_container(node_process, probe, tmp_path):
     """Two complete stacks, each with the stack's params file applied in its namespace (its
-    /pam sections re-keyed: sim_node's mismatch is 'mild', not the default '')."""
+    /pam sections re-keyed: sim_node's scenario is 'mild', not the default '')."""
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics')
     # two stacks at 1 kHz in one process need more than the one core a Python process gets on
     # a slow 2-core machine (GIL-bound: docs/composition.md; overloaded, the EventsExecutor
@@ -149,7 +149,7 @@ def test_two_stacks_in_one_container(node_process, probe, tmp_path):
                                status_names(diagnostics, ['/joint1', '/joint2'])} == names,
                       TIMEOUT), status_names(diagnostics, ['/joint1', '/joint2'])
     for ns in ('/joint1', '/joint2'):
-        assert "string_value='mild'" in parameters(probe, f'{ns}/sim_node')['mismatch']
+        assert "string_value='mild'" in parameters(probe, f'{ns}/sim_node')['scenario']
         assert 'double_value=40.0' in parameters(probe, f'{ns}/pi_node')['kp_angle']
     assert composed.alive()
     assert composed.stop() == 0, composed.stderr

@@ -116,7 +116,7 @@ def test_the_demo_runs_the_workflow_and_stops_the_stack(node_process, ros_domain
     assert bags == ['free', 'locked_m15deg', 'locked_p15deg'], bags
     identified = out / 'demo' / 'identified'
     params = (out / 'demo' / 'bringup_identified.yaml').read_text()
-    assert str(identified / 'params.yaml') in params and 'mismatch: realistic' in params
+    assert str(identified / 'params.yaml') in params and 'scenario: realistic' in params
     assert not (out / 'demo' / 'bringup_nominal.yaml').exists()
     extensions = load_extensions(identified / 'extensions.yaml').describe()
     assert f'model extensions: {extensions}' in (

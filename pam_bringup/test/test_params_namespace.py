@@ -113,7 +113,7 @@ def test_the_default_file_gives_every_node_in_joint2_what_it_gives_it_in_pam(tmp
         # the bug: the file itself gives the node nothing in /joint2
         assert rcl_parameters(ros_context, source, f'/joint2/{name}') == {}
         assert rcl_parameters(ros_context, params.file, f'/joint2/{name}') == in_pam, name
-    assert rcl_parameters(ros_context, params.file, '/joint2/sim_node')['mismatch'] == 'mild'
+    assert rcl_parameters(ros_context, params.file, '/joint2/sim_node')['scenario'] == 'mild'
     assert 'bringup.yaml' in params.describe() and str(params.file) in params.describe()
 
 
@@ -146,9 +146,9 @@ def test_wildcard_sections_and_other_namespaces_are_kept_in_place(tmp_path, ros_
     source = write(tmp_path, '''\
         /**: {ros__parameters: {seed: 1}}
         /**/sim_node: {ros__parameters: {rate: 500.0}}
-        /pam/sim_node: {ros__parameters: {rate: 2000.0, mismatch: mild}}
+        /pam/sim_node: {ros__parameters: {rate: 2000.0, scenario: mild}}
         /*/sim_node: {ros__parameters: {joint_mode: locked}}
-        /joint3/sim_node: {ros__parameters: {mismatch: strong}}
+        /joint3/sim_node: {ros__parameters: {scenario: strong}}
         /pam/*: {ros__parameters: {frame_id: here}}
         ''')
     params = copy_for(tmp_path, source)
@@ -156,25 +156,25 @@ def test_wildcard_sections_and_other_namespaces_are_kept_in_place(tmp_path, ros_
     assert [key for key, _ in file_sections(params.file)] == [
         '/**', '/**/sim_node', '/joint2/sim_node', '/*/sim_node', '/joint3/sim_node',
         '/joint2/*']
-    expected = {'seed': 1, 'rate': 2000.0, 'mismatch': 'mild', 'joint_mode': 'locked',
+    expected = {'seed': 1, 'rate': 2000.0, 'scenario': 'mild', 'joint_mode': 'locked',
                 'frame_id': 'here'}
     assert rcl_parameters(ros_context, source, '/pam/sim_node') == expected
     assert rcl_parameters(ros_context, params.file, '/joint2/sim_node') == expected
     # /joint3's own section still applies there only
     assert rcl_parameters(ros_context, params.file, '/joint3/sim_node') == {
-        'seed': 1, 'rate': 500.0, 'joint_mode': 'locked', 'mismatch': 'strong'}
+        'seed': 1, 'rate': 500.0, 'joint_mode': 'locked', 'scenario': 'strong'}
 
 
 @pytest.mark.parametrize('own_first', [False, True])
 def test_the_files_own_section_for_the_namespace_wins(tmp_path, ros_context, own_first):
-    default = '/pam/sim_node: {ros__parameters: {rate: 2000.0, mismatch: mild, seed: 3}}\n'
+    default = '/pam/sim_node: {ros__parameters: {rate: 2000.0, scenario: mild, seed: 3}}\n'
     own = 'joint2:\n  sim_node: {ros__parameters: {rate: 500.0, seed: 8}}\n'
     source = write(tmp_path, own + default if own_first else default + own)
     params = copy_for(tmp_path, source)
     assert params.moved == ('/pam/sim_node',)
     assert [key for key, _ in file_sections(params.file)] == ['/joint2/sim_node']
     assert rcl_parameters(ros_context, params.file, '/joint2/sim_node') == {
-        'rate': 500.0, 'mismatch': 'mild', 'seed': 8}
+        'rate': 500.0, 'scenario': 'mild', 'seed': 8}
     assert rcl_parameters(ros_context, params.file, '/joint4/sim_node') == {}
 
 

@@ -90,3 +90,26 @@ def test_a_copy_of_ukf_node_yaml_with_the_paper_tuning_gets_the_papers_tuning():
     for tuning in ('default', 'paper'):
         config = ukf_config.build_config({**values, 'tuning': tuning})
         assert config.ukf.tuning == TUNINGS[tuning]
+
+
+def _node_configs():
+    """(parameter table, its NodeConfig class) of every node whose config is one field per
+    row (the others build richer objects from their rows: SimConfig, DriverConfig, UkfConfig,
+    PiConfig)."""
+    from pam_bag import bag_play, bag_record
+    from pam_bringup import foxglove_view, tracking_report
+    from pam_controller import profile_player
+    return [(reference_node.PARAMETERS, reference_node.ReferenceConfig),
+            (profile_player.PARAMETERS, profile_player.PlayerConfig),
+            (bag_record.PARAMETERS, bag_record.RecordOptions),
+            (bag_play.PARAMETERS, bag_play.PlayOptions),
+            (tracking_report.PARAMETERS, tracking_report.ReportConfig),
+            (foxglove_view.PARAMETERS, foxglove_view.ViewConfig)]
+
+
+def test_every_node_config_has_one_field_per_parameter():
+    for table, config in _node_configs():
+        assert config.parameter_names() == [spec.name for spec in table], config.__name__
+        built = config.from_values(defaults(table))
+        with pytest.raises(AttributeError):      # frozen
+            setattr(built, table[0].name, None)

@@ -229,13 +229,17 @@ class ShutdownWatchdog:
 
 @dataclass(frozen=True)
 class Component:
-    """A node as a composable component: its name (the node name), how to make it
-    (`factory(**node_kwargs)`, e.g. namespace=..., cli_args=[...]) and, optionally, what to do
-    when it stops with ROS still up (`stop(node)`, e.g. driver_node's safe output)."""
+    """A node as a composable component, with one lifecycle for every node: its name (the node
+    name), how to build it (`factory(**node_kwargs)`, e.g. namespace=..., cli_args=[...]: its
+    parameters checked, its interfaces made, nothing running yet), and optionally how to start
+    it (`start(node)`, e.g. a rig's sampling thread: once every node of the process is built and
+    on the executor) and what to do when it stops with ROS still up (`stop(node)`, e.g.
+    driver_node's safe output)."""
 
     name: str
     factory: Callable[..., Any]
     stop: Callable[[Any], None] | None = None
+    start: Callable[[Any], None] | None = None
 
 
 def run_node(node_factory, name: str, args=None, stop=None) -> int:
@@ -272,8 +276,18 @@ def prefer_asynchronous_publication() -> str:
     270 us a sample), and 4.8 % of the rig's samples were late instead of 1.5 %. The cost: one
     more thread hop before a sample leaves the process (tens of us), and a reader slower than
     the writer's history (depth 100: 0.1 s at 1 kHz) loses samples instead of slowing the
-    publisher, which a real-time loop must never do anyway. Returns the mode in force."""
+    publisher, which a real-time loop must never do anyway. Returns the mode in force.
+    Not for a finite tool (finite_tool): see there."""
     return os.environ.setdefault(PUBLICATION_MODE_VARIABLE, PUBLICATION_MODE)
+
+
+def finite_tool(component: Component) -> bool:
+    """A node that ends by itself and says how in finish() (bag_record, bag_play,
+    profile_player, tracking_report): its process keeps FastDDS's synchronous publication. Its
+    last lines (the summary, also on /rosout) are published just before the process ends, and
+    an asynchronous writer destroyed at exit had not sent them yet (seen in CI: bag_record's
+    summary never reached a /rosout subscriber, its earlier lines did)."""
+    return callable(getattr(component.factory, 'finish', None))
 
 
 #: FastDDS's publication mode for a lockstep stack (sim_node timing:=lockstep and its loop)
@@ -322,18 +336,20 @@ def run_nodes(components: Sequence[Component], name: str, args=None,
     component's factory with its `node_kwargs` entry (default: none), in order, and stopped and
     destroyed in reverse order; otherwise as run_node (which is this with one component). A
     ConfigError of any node is one line naming that node, exit code 2, and the nodes already
-    built are destroyed. Only a single node may be a finite one (a `finished` Future).
-    `on_started(nodes)` runs once every node is built and on the executor. The process-wide
+    built are destroyed. Only a single node may be a finite one (a `finished` Future). Once
+    every node is built and on the executor, each component's `start` runs, in order, then
+    `on_started(nodes)`. The process-wide
     knobs are set here, for whichever nodes the process holds: FastDDS's publication mode
-    (prefer_asynchronous_publication), the thread switch interval (shorten_switch_interval),
-    the frozen heap (freeze_heap)."""
+    (prefer_asynchronous_publication, unless a node is a finite_tool), the thread switch
+    interval (shorten_switch_interval), the frozen heap (freeze_heap)."""
     from .node_params import ConfigError
     from .params_files import report_ros_args_problem
     code = report_ros_args_problem(sys.argv if args is None else args, name)
     if code is not None:            # a bad params file or -p rule: one line, before rclpy.init
         return code
     kwargs = list(node_kwargs) if node_kwargs is not None else [{} for _ in components]
-    prefer_asynchronous_publication()
+    if not any(finite_tool(component) for component in components):
+        prefer_asynchronous_publication()
     shorten_switch_interval()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_signals = StopSignals()
@@ -361,6 +377,9 @@ def run_nodes(components: Sequence[Component], name: str, args=None,
             executor = make_executor(events=not sim_time)
             for node in nodes:
                 executor.add_node(node)
+            for component, node in built:
+                if component.start is not None:
+                    component.start(node)
             if on_started is not None:
                 on_started(nodes)
             freeze_heap()

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import textwrap
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 from pam_model.valve_voltage import U_MAX, U_MIN  # V, the valve voltage range
@@ -42,6 +42,9 @@ class ParamSpec:
     choices: tuple = ()
     range: tuple | None = None
     read_only: bool = True
+    #: old names still accepted (a params file or -p rule of an earlier release), each mapped
+    #: to this one with a warning; giving two of them different values is a ConfigError
+    aliases: tuple = ()
 
     def default_value(self) -> Any:
         """The default, a Deferred one resolved now."""
@@ -54,6 +57,29 @@ class ParamSpec:
         if isinstance(default, list):
             return '[' + ', '.join(repr(v) for v in default) + ']'
         return repr(default)
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    """Base of a node's checked configuration, frozen and built once: one field per row of its
+    parameter table, of the same name (the table keeps the default, unit, range and text: each
+    written once), lists as tuples. A subclass declares the fields with their types and may add
+    properties derived from them."""
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]):
+        """From check_all's (or a node's own check's) values: every field's row, nothing else
+        read. ValueError names a missing one (a table and its config that disagree)."""
+        names = [f.name for f in fields(cls)]
+        missing = [n for n in names if n not in values]
+        if missing:
+            raise ValueError(f'{cls.__name__}: no value for {", ".join(missing)}')
+        return cls(**{n: tuple(values[n]) if isinstance(values[n], list) else values[n]
+                      for n in names})
+
+    @classmethod
+    def parameter_names(cls) -> list[str]:
+        return [f.name for f in fields(cls)]
 
 
 #: The row every node's parameter table holds: the hardware_id of its /diagnostics status
@@ -70,9 +96,35 @@ def defaults(specs: Sequence[ParamSpec]) -> dict[str, Any]:
     return {name: (list(v) if isinstance(v, list) else v) for name, v in values.items()}
 
 
+def renamed_overrides(specs: Sequence[ParamSpec], overrides: Mapping[str, Any]
+                      ) -> tuple[dict[str, Any], list[tuple[str, str]]]:
+    """The overrides with every old name (a spec's aliases) replaced by the spec's name, and the
+    (old, new) pairs replaced. ConfigError when an old name and the new one (or two old ones)
+    are given different values."""
+    result = dict(overrides)
+    renamed = []
+    for spec in specs:
+        for alias in spec.aliases:
+            if alias not in result:
+                continue
+            value = result.pop(alias)
+            if spec.name in result and result[spec.name] != value:
+                fail(spec.name, f"given twice with different values, as '{spec.name}' "
+                     f"({result[spec.name]!r}) and by its old name '{alias}' ({value!r})")
+            result[spec.name] = value
+            renamed.append((alias, spec.name))
+    return result, renamed
+
+
+def renamed_warning(old: str, new: str) -> str:
+    return f"parameter '{old}' is the old name of '{new}': read as {new} (rename it)"
+
+
 def merge_overrides(specs: Sequence[ParamSpec], overrides: Mapping[str, Any] | None) -> dict:
-    """Defaults updated with overrides; an unknown name is a ConfigError."""
+    """Defaults updated with overrides (old names read as the new ones); an unknown name is a
+    ConfigError."""
     values = defaults(specs)
+    overrides, _ = renamed_overrides(specs, overrides or {})
     unknown = sorted(set(overrides or {}) - set(values))
     if unknown:
         raise ConfigError(f'unknown parameter {unknown[0]!r}')
@@ -195,7 +247,8 @@ def usage_text(prog: str, summary: Sequence[str], specs: Sequence[ParamSpec],
             extra = '  {' + ', '.join(spec.choices) + '}'
         elif spec.range:
             extra = f'  [{spec.range[0]} .. {spec.range[1]}]'
-        lines.append(f'  {spec.name} ({kind}) = {spec.default_text()}{extra}')
+        lines.append(f'  {spec.name} ({kind}) = {spec.default_text()}{extra}'
+                     + (f'  (old name: {", ".join(spec.aliases)})' if spec.aliases else ''))
         lines.extend(textwrap.wrap(spec.description, width=96, initial_indent=' ' * 6,
                                    subsequent_indent=' ' * 6))
     if examples:
@@ -253,7 +306,8 @@ def override_value(node, name: str):
 
 def unknown_overrides(node, specs: Sequence[ParamSpec]) -> list[str]:
     """Names given on the command line or in a params file that no spec declares (typos)."""
-    known = {spec.name for spec in specs} | {'use_sim_time', 'start_type_description_service'}
+    known = ({spec.name for spec in specs} | {a for spec in specs for a in spec.aliases}
+             | {'use_sim_time', 'start_type_description_service'})
     return sorted(name for name in getattr(node, '_parameter_overrides', {})
                   if name not in known and not name.startswith('qos_overrides.'))
 
@@ -282,6 +336,21 @@ def _give_empty_value(node, spec: ParamSpec, array_type: str) -> None:
         node.set_descriptor(spec.name, descriptor(spec))
 
 
+def _rename_overrides(node, specs: Sequence[ParamSpec]) -> None:
+    """An override given by an old name (ParamSpec.aliases) becomes the override of the new
+    name, with a warning, so the node declares and reports only the new one. rclpy has no
+    public accessor for the overrides: this edits Node._parameter_overrides."""
+    from rclpy.parameter import Parameter
+    overrides = getattr(node, '_parameter_overrides', None)
+    if not overrides or not any(spec.aliases for spec in specs):
+        return
+    given = {name: parameter.value for name, parameter in overrides.items()}
+    _, renamed = renamed_overrides(specs, given)
+    for old, new in renamed:
+        overrides[new] = Parameter(new, value=overrides.pop(old).value)
+        node.get_logger().warning(renamed_warning(old, new))
+
+
 def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """Declare every spec on the node with its descriptor and return the values; call it once,
     with the node's whole table.
@@ -295,6 +364,7 @@ def declare_parameters(node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     from rclpy.parameter import Parameter
     for name in unknown_overrides(node, specs):     # first: a typo may explain an error below
         node.get_logger().warning(unknown_parameter_warning(name, specs, node.get_name()))
+    _rename_overrides(node, specs)
     values = {}
     for spec in specs:
         # an empty list has no element type: declare such a parameter by its type instead

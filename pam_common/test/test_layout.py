@@ -355,8 +355,8 @@ def test_nothing_outside_pam_common_calls_the_pieces_itself():
 
 # ---------------------------------------------------------------------------- configs and cores
 #: The 1 kHz nodes' shape: a frozen config dataclass built once from the parameter table (its
-#: module and class) and a core that holds the decisions (its module), both without ROS, so
-#: they are tested by calling them (no spinning). driver_node's is driver_core.SafetyConfig.
+#: module and class) and the cores that hold the decisions (their modules), all without ROS, so
+#: they are tested by calling them (no spinning).
 CONFIG_AND_CORE = {
     'sim_node': ('pam_driver/pam_driver/sim_config.py', 'SimConfig',
                  'pam_driver/pam_driver/sim_core.py'),
@@ -364,8 +364,10 @@ CONFIG_AND_CORE = {
                  'pam_estimator/pam_estimator/estimator_core.py'),
     'pi_node': ('pam_controller/pam_controller/pi_config.py', 'PiConfig',
                 'pam_controller/pam_controller/control_loop.py'),
-    'driver_node': ('pam_driver/pam_driver/driver_core.py', 'SafetyConfig',
-                    'pam_driver/pam_driver/driver_core.py'),
+    'driver_node': ('pam_driver/pam_driver/driver_config.py', 'DriverConfig',
+                    'pam_driver/pam_driver/driver_core.py',
+                    'pam_driver/pam_driver/serial_session.py',
+                    'pam_driver/pam_driver/driver_health.py'),
 }
 #: pam_common's modules a ROS-free config or core may import (they import no ROS themselves)
 ROS_FREE_COMMON = {'pam_common.node_params', 'pam_common.realtime_knobs', 'pam_common.realtime',
@@ -430,8 +432,17 @@ def test_the_ros_free_common_modules_import_no_ros():
 
 @pytest.mark.parametrize('node', sorted(CONFIG_AND_CORE))
 def test_every_1khz_node_has_a_frozen_config_and_a_ros_free_core(node):
-    config_file, config_class, core_file = (ROOT / p if p.endswith('.py') else p
-                                            for p in CONFIG_AND_CORE[node])
+    config_file, config_class, *core_files = (ROOT / p if p.endswith('.py') else p
+                                              for p in CONFIG_AND_CORE[node])
     assert config_class in frozen_dataclasses(parse(config_file))
-    for path in {config_file, core_file}:
+    for path in {config_file, *core_files}:
         assert ros_imports(parse(path), module_package(path)) == [], path
+
+
+@pytest.mark.parametrize('node', sorted(NODES))
+def test_no_node_keeps_its_parameters_in_a_dict(node):
+    """Each node reads its parameters from its frozen config (self.config.<name>), built once by
+    its check (parameter_values(..., check=build_config)), not from a mutable dict of values."""
+    text = node_modules()[node].read_text()
+    assert 'self.values =' not in text and "self.values['" not in text, node
+    assert 'parameter_values(self, PARAMETERS, check=' in text, node

@@ -21,13 +21,14 @@ from pam_estimator.pam_ukf import (
     DEFAULT_TUNING,
     INFO_FIELDS,
     INFO_TORQUE,
+    FilterSettings,
     PamUkf,
     UkfTuning,
     ukf_step,
 )
 from pam_estimator.valid_readings import NIS_GATE_OFF, PRESSURE_MAX, PRESSURE_MIN
 from pam_model.effects import Effects, EffectsPlant
-from pam_model.model import PamModel
+from pam_model.model import KernelModel, PamModel
 from pam_model.model_extensions import NO_EXTENSIONS
 from pam_model.physics import joint_torque, muscle_forces, step_array
 from pam_model.rest import REST_STATE
@@ -37,18 +38,32 @@ from .pi import ANTI_WINDUP, PiGains, pi_step
 from .step_metrics import StepReport, step_report
 
 
+class PiSettings(NamedTuple):
+    """The PI's settings as the kernels take them, in one record: gains kp (V per rad or N m),
+    ki (V per rad s or N m s), the bias beta (V), the limits u_min, u_max (V), the anti-windup
+    scheme's index in pi.ANTI_WINDUP and the back-calculation's tracking_time (s)."""
+
+    kp: float
+    ki: float
+    beta: float
+    u_min: float
+    u_max: float
+    anti_windup: int
+    tracking_time: float
+
+
 @njit(cache=True)
-def control_step(x_hat, P, u, y, Q, R, h, est_array, kappa_u, kappa_alpha, friction_law,
-                 force_model, locked, lock_angle, info, torque_mode, reference, i_term, kp, ki,
-                 beta, u_min, u_max, anti_windup, tracking_time):
+def control_step(x_hat, P, u, y, model, settings, pi, info, torque_mode, reference, i_term):
     """The controller's half of one sample: the UKF steps (in place) with u(k-1) = u and the
     reading y (Pa), the PI acts on reference - estimate (angle rad, or torque N m in torque_mode)
-    and writes u(k) (V) into u. Returns (feedback, the PI's new integral term)."""
-    ukf_step(x_hat, P, u, y, Q, R, h, est_array, kappa_u, kappa_alpha, friction_law,
-             force_model, locked, lock_angle, NIS_GATE_OFF, PRESSURE_MIN, PRESSURE_MAX, info)
+    and writes u(k) (V) into u. model: the estimator's KernelModel; settings: its
+    FilterSettings; pi: a PiSettings. Returns (feedback, the PI's new integral term)."""
+    ukf_step(x_hat, P, u, y, model, settings, info)
     feedback = info[INFO_TORQUE] if torque_mode else x_hat[0]
-    u[0], u[1], _, i_term, _ = pi_step(reference - feedback, h, i_term, kp, ki, beta, u_min,
-                                       u_max, anti_windup, tracking_time, 2.0 * h)
+    h = model.h
+    u[0], u[1], _, i_term, _ = pi_step(reference - feedback, h, i_term, pi.kp, pi.ki, pi.beta,
+                                       pi.u_min, pi.u_max, pi.anti_windup, pi.tracking_time,
+                                       2.0 * h)
     return feedback, i_term
 
 
@@ -69,7 +84,10 @@ def closed_loop_kernel(x0, reference, torque_mode, noise, h, plant_array, est_ar
     commands = np.empty((c_count, n, 2))
     info = np.zeros(len(INFO_FIELDS))
     plant_p = plant_array[0]
+    model = KernelModel(h, est_array, kappa_u, kappa_alpha, friction_law, force_model, locked)
+    settings = FilterSettings(Q, R, x0[0], NIS_GATE_OFF, PRESSURE_MIN, PRESSURE_MAX)
     for c in range(c_count):
+        pi = PiSettings(gains[c, 0], gains[c, 1], beta, u_min, u_max, anti_windup, tracking_time)
         x_true = x0.copy()
         x_hat = x0.copy()
         P = P0.copy()
@@ -85,10 +103,8 @@ def closed_loop_kernel(x0, reference, torque_mode, noise, h, plant_array, est_ar
                 truth[c, k] = joint_torque(x_true[0], F1, F2, plant_p)
             else:
                 truth[c, k] = x_true[0]
-            estimate[c, k], i_term = control_step(
-                x_hat, P, u, y, Q, R, h, est_array, kappa_u, kappa_alpha, friction_law,
-                force_model, locked, x0[0], info, torque_mode, reference[k], i_term, gains[c, 0],
-                gains[c, 1], beta, u_min, u_max, anti_windup, tracking_time)
+            estimate[c, k], i_term = control_step(x_hat, P, u, y, model, settings, pi, info,
+                                                  torque_mode, reference[k], i_term)
             commands[c, k, 0] = u[0]
             commands[c, k, 1] = u[1]
             step_array(x_true, u[0], u[1], h, plant_array, kappa_u, kappa_alpha, friction_law,
@@ -174,6 +190,10 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
     est = estimator_model
     torque_mode = mode == 'torque'
     aw = ANTI_WINDUP.index(anti_windup)
+    model = est.kernel_model()
+    settings = FilterSettings(Q, R, float(x0[0]), NIS_GATE_OFF, PRESSURE_MIN, PRESSURE_MAX)
+    pi = PiSettings(kp, ki, float(limits.beta), float(limits.u_min), float(limits.u_max), aw,
+                    float(tracking_time))
     plant_steps = EffectsPlant(plant, effects, x, u)
     extended = PamUkf(model=est, tuning=tuning, x0=tuple(x), extensions=extensions) \
         if extensions.active else None
@@ -187,11 +207,8 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
                                sensor.range_max)
         truth[k] = plant_steps.outputs(x)[2] if torque_mode else x[0]
         if extended is None:
-            estimate[k], i_term = control_step(
-                x_hat, P, u, y, Q, R, h, est.params_array, est.valve_map.u, est.valve_map.alpha,
-                est.friction_code, est.force_code, est.locked, x0[0], info, torque_mode,
-                reference[k], i_term, kp, ki, limits.beta, limits.u_min, limits.u_max, aw,
-                tracking_time)
+            estimate[k], i_term = control_step(x_hat, P, u, y, model, settings, pi, info,
+                                               torque_mode, reference[k], i_term)
         else:
             out = extended.step(y, u)
             estimate[k] = out.torque if torque_mode else out.x[0]

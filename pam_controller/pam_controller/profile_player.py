@@ -14,13 +14,21 @@ publishes valve_command. Run `profile_player --help` for the parameters.
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 from rclpy.node import Node
 from rclpy.task import Future
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
-from pam_common.node_params import HARDWARE_ID_PARAM, ConfigError, ParamSpec, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    ConfigError,
+    NodeConfig,
+    ParamSpec,
+    check_all,
+    usage_text,
+)
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import SAMPLE_QOS
 from pam_common.topics import DEFAULT_NAMESPACE, ESTIMATE, JOINT_MEASURED, PRESSURES, VALVE_COMMAND
@@ -77,18 +85,41 @@ SUMMARY = [
 ]
 
 
-def profile_inputs(values: dict):
+@dataclass(frozen=True)
+class PlayerConfig(NodeConfig):
+    """profile_player's checked parameters (the table above: units, ranges, defaults)."""
+
+    profile: str
+    duration: float
+    hold: float
+    pair_hold: float
+    voltages: tuple[float, ...]
+    seed: int
+    rate: float
+    joint_mode: str
+    save: str
+    wait_for_estimator: float
+    startup_timeout: float
+    hardware_id: str
+
+
+def build_config(values: dict) -> PlayerConfig:
+    """Check the values against the table; ConfigError names the parameter."""
+    return PlayerConfig.from_values(check_all(PARAMETERS, values))
+
+
+def profile_inputs(config: PlayerConfig):
     """(N, 2) V: the chosen profile's valve voltages, one row per sample; ValueError if the
     profile's own checks reject the values."""
     from pam_model.calibration_profiles import free_calibration_profile, locked_calibration_profile
     from pam_model.profiles import validation_profile
-    Ts = 1.0 / values['rate']
-    if values['profile'] == 'calibration_locked':
-        return locked_calibration_profile(values['seed'], values['hold'], values['pair_hold'],
-                                          voltages=values['voltages'], Ts=Ts).u
-    if values['profile'] == 'calibration_free':
-        return free_calibration_profile(values['seed'], values['duration'], Ts=Ts).u
-    return validation_profile(values['seed'], values['duration'], Ts).u
+    Ts = 1.0 / config.rate
+    if config.profile == 'calibration_locked':
+        return locked_calibration_profile(config.seed, config.hold, config.pair_hold,
+                                          voltages=list(config.voltages), Ts=Ts).u
+    if config.profile == 'calibration_free':
+        return free_calibration_profile(config.seed, config.duration, Ts=Ts).u
+    return validation_profile(config.seed, config.duration, Ts).u
 
 
 class ProfilePlayer(Node):
@@ -97,13 +128,13 @@ class ProfilePlayer(Node):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        values = parameter_values(self, PARAMETERS)
-        self.values = values
+        self.config = config = parameter_values(self, PARAMETERS, check=build_config)
         try:
-            self.U = profile_inputs(values)
+            self.U = profile_inputs(config)
         except ValueError as exc:
-            raise ConfigError(f"profile {values['profile']!r}: {exc}") from exc
-        self.recorder = RunRecorder(len(self.U), locked=values['joint_mode'] == 'locked')
+            raise ConfigError(f'profile {config.profile!r}: {exc}') from exc
+        self.recorder = RunRecorder(len(self.U), locked=config.joint_mode == 'locked')
+        self._wait_for_estimator = config.wait_for_estimator   # s; 0 once given up
         self.finished = Future()
         self.started = False
         self._created = self.get_clock().now()
@@ -115,20 +146,20 @@ class ProfilePlayer(Node):
         self.create_subscription(Pressures, PRESSURES, self._on_pressures, SAMPLE_QOS)
         self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, SAMPLE_QOS)
         self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, SAMPLE_QOS)
-        self._startup_timer = self.create_timer(values['startup_timeout'], self._on_timeout)
-        self.diagnostics = DiagnosticsPublisher(self, 'profile player', values['hardware_id'],
+        self._startup_timer = self.create_timer(config.startup_timeout, self._on_timeout)
+        self.diagnostics = DiagnosticsPublisher(self, 'profile player', config.hardware_id,
                                                 self._report)
         self.diagnostics.add_check(self.guard.report)
         self.get_logger().info(
-            f"playing the {values['profile']} profile ({len(self.U) / values['rate']:g} s, seed "
-            f"{values['seed']}) on {self.resolve_topic_name(VALVE_COMMAND)}, one command per "
+            f'playing the {config.profile} profile ({len(self.U) / config.rate:g} s, seed '
+            f'{config.seed}) on {self.resolve_topic_name(VALVE_COMMAND)}, one command per '
             f'sample of {self.resolve_topic_name(PRESSURES)}')
 
     def _on_timeout(self) -> None:
         self.destroy_timer(self._startup_timer)
         if not self.started:
             self.get_logger().error(
-                f"no pressure sample within {self.values['startup_timeout']:g} s: is the rig "
+                f"no pressure sample within {self.config.startup_timeout:g} s: is the rig "
                 f"(sim_node or the driver) running on this ROS_DOMAIN_ID and namespace?")
             self.finished.set_result(1)
 
@@ -161,14 +192,14 @@ class ProfilePlayer(Node):
 
     def _estimator_ready(self) -> bool:
         """True once an estimator publishes, or when not waiting (any more) for one."""
-        wait = self.values['wait_for_estimator']
+        wait = self._wait_for_estimator
         if wait <= 0.0 or self.count_publishers(self.resolve_topic_name(ESTIMATE)) > 0:
             return True
         waited = (self.get_clock().now() - self._created).nanoseconds * 1e-9
         if waited < wait:
             return False
         self.get_logger().warn(f'no estimator after {wait:g} s: starting without one')
-        self.values['wait_for_estimator'] = 0.0
+        self._wait_for_estimator = 0.0
         return True
 
     def _on_truth(self, msg: JointMeasurement) -> None:
@@ -182,7 +213,7 @@ class ProfilePlayer(Node):
         while waiting for the first pressure sample."""
         total = len(self.U)
         played = min(self.recorder.n, total)
-        values = {'profile': self.values['profile'], 'samples played': played,
+        values = {'profile': self.config.profile, 'samples played': played,
                   'samples in the profile': total,
                   'progress (%)': 100.0 * played / total if total else 100.0,
                   'repeated samples': self.recorder.duplicates,
@@ -198,13 +229,13 @@ class ProfilePlayer(Node):
         if not self.started:
             return 1
         logger = self.get_logger()
-        for line in self.recorder.summary(self.values['rate']):
+        for line in self.recorder.summary(self.config.rate):
             logger.info(line)
         for topic, count in self.guard.counts.items():
             if count:
                 logger.info(f'non-finite values substituted on {topic}: {count}')
-        if self.values['save']:
-            path = self.recorder.save(self.values['save'], 1.0 / self.values['rate'])
+        if self.config.save:
+            path = self.recorder.save(self.config.save, 1.0 / self.config.rate)
             logger.info(f'saved the run to {path}')
         return 0
 

@@ -15,16 +15,29 @@ from __future__ import annotations
 
 import math
 import sys
+from dataclasses import dataclass
 
 import numpy as np
 
 from pam_common.diagnostics import OK, DiagnosticsPublisher
 from pam_common.finite_guard import FiniteGuard
 from pam_common.links import LinkedNode
-from pam_common.node_params import HARDWARE_ID_PARAM, ParamSpec, check_all, fail, usage_text
+from pam_common.node_params import (
+    HARDWARE_ID_PARAM,
+    NodeConfig,
+    ParamSpec,
+    check_all,
+    fail,
+    usage_text,
+)
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import LATEST_QOS
-from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeKnobs
+from pam_common.realtime_knobs import (
+    REALTIME_PARAMS,
+    RealtimeKnobs,
+    RealtimeRequest,
+    check_realtime,
+)
 from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
 from pam_interfaces.msg import Reference
 
@@ -55,86 +68,113 @@ SUMMARY = ['Reference profiles for pi_node (pam_controller): publishes reference
            '(pam_interfaces/Reference) at `rate`. Default namespace /pam.']
 
 
-def profile_value(values: dict, steps: np.ndarray | None, t: float) -> float:
+@dataclass(frozen=True)
+class ReferenceConfig(NodeConfig):
+    """reference_node's checked parameters (the table above: units, ranges, defaults)."""
+
+    mode: str
+    profile: str
+    amplitude: float
+    offset: float
+    hold: float
+    period: float
+    duration: float
+    repeat: bool
+    seed: int
+    rate: float
+    hardware_id: str
+    thread_priority: int
+    cpu_affinity: tuple[int, ...]
+    lock_memory: bool
+
+    @property
+    def realtime(self) -> RealtimeRequest:
+        return RealtimeRequest(self.thread_priority, self.cpu_affinity, self.lock_memory)
+
+
+def profile_value(config: ReferenceConfig, steps: np.ndarray | None, t: float) -> float:
     """The reference (rad or N m) at time t (s) of the configured profile."""
-    duration = values['duration']
+    duration = config.duration
     if t >= duration:
-        t = t % duration if values['repeat'] else duration - 1e-9
-    a, kind = values['amplitude'], values['profile']
+        t = t % duration if config.repeat else duration - 1e-9
+    a, kind = config.amplitude, config.profile
     if kind == 'steps':
-        value = steps[min(int(t / values['hold']), len(steps) - 1)]
+        value = steps[min(int(t / config.hold), len(steps) - 1)]
     elif kind == 'ramp':
-        phase = (t / values['period'] + 0.25) % 1.0        # a triangle from 0, rising first
+        phase = (t / config.period + 0.25) % 1.0        # a triangle from 0, rising first
         value = a * (1.0 - 4.0 * abs(phase - 0.5))
     elif kind == 'sine':
-        value = a * math.sin(2.0 * math.pi * t / values['period'])
+        value = a * math.sin(2.0 * math.pi * t / config.period)
     else:
         value = 0.0
-    return float(value) + values['offset']
+    return float(value) + config.offset
 
 
-def step_levels(values: dict) -> np.ndarray:
+def step_levels(config: ReferenceConfig) -> np.ndarray:
     """The levels of the steps profile, one per hold."""
     from pam_model.profiles import ANGLE_STEP_MAX, TORQUE_STEP_MAX, step_reference_profile
-    ref = step_reference_profile(values['mode'], values['seed'], values['duration'],
-                                 values['hold'], Ts=values['hold'])
-    limit = ANGLE_STEP_MAX if values['mode'] == 'angle' else TORQUE_STEP_MAX
-    return ref.value * (values['amplitude'] / limit)
+    ref = step_reference_profile(config.mode, config.seed, config.duration, config.hold,
+                                 Ts=config.hold)
+    limit = ANGLE_STEP_MAX if config.mode == 'angle' else TORQUE_STEP_MAX
+    return ref.value * (config.amplitude / limit)
 
 
-def check_values(values: dict) -> dict:
+def build_config(values: dict) -> ReferenceConfig:
+    """Check the values (the table's ranges and choices, the rig's envelope); ConfigError names
+    the parameter."""
     check_all(PARAMETERS, values)
+    check_realtime(values)
     limit = LIMITS[values['mode']]
     if values['amplitude'] + abs(values['offset']) > limit:
         fail('amplitude', f"amplitude + |offset| exceeds the rig's envelope {limit:g} "
                           f"({'rad' if values['mode'] == 'angle' else 'N m'})")
-    return values
+    return ReferenceConfig.from_values(values)
 
 
 class ReferenceNode(LinkedNode):
     def __init__(self, **kwargs):
         kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
         super().__init__(NODE_NAME, **kwargs)
-        self.values = parameter_values(self, PARAMETERS, check=check_values)
+        self.config = config = parameter_values(self, PARAMETERS, check=build_config)
         # the stack's knobs (pam_common.realtime_knobs): the executor it shares when composed
-        self.realtime = RealtimeKnobs(self.get_logger(), self.values)
+        self.realtime = RealtimeKnobs(self.get_logger(), config.realtime)
         self.realtime.apply_to_executor()
-        self.mode = Reference.ANGLE if self.values['mode'] == 'angle' else Reference.TORQUE
-        self.steps = step_levels(self.values) if self.values['profile'] == 'steps' else None
+        self.mode = Reference.ANGLE if config.mode == 'angle' else Reference.TORQUE
+        self.steps = step_levels(config) if config.profile == 'steps' else None
         self.guard = FiniteGuard(self.get_logger())
         self.publisher = self.guard.wrap(self.create_publisher(Reference, REFERENCE, LATEST_QOS),
                                          hold=True)
         self.start = None
         self.published = 0
-        self.create_timer(1.0 / self.values['rate'], self._tick)
-        diagnostics = DiagnosticsPublisher(self, 'reference profile', self.values['hardware_id'],
+        self.create_timer(1.0 / config.rate, self._tick)
+        diagnostics = DiagnosticsPublisher(self, 'reference profile', config.hardware_id,
                                            self._report)
         diagnostics.add_check(self.guard.report)
         diagnostics.add_check(self.realtime.report)
         unit = 'rad' if self.mode == Reference.ANGLE else 'N m'
         self.get_logger().info(
-            f"{self.values['profile']} profile, {self.values['mode']} mode, amplitude "
-            f"{self.values['amplitude']:g} {unit}, offset {self.values['offset']:g} {unit}, "
-            f"{self.values['duration']:g} s{' repeated' if self.values['repeat'] else ''}, "
-            f"on {self.resolve_topic_name(REFERENCE)} at {self.values['rate']:g} Hz")
+            f'{config.profile} profile, {config.mode} mode, amplitude {config.amplitude:g} '
+            f'{unit}, offset {config.offset:g} {unit}, {config.duration:g} s'
+            f"{' repeated' if config.repeat else ''}, on {self.resolve_topic_name(REFERENCE)} at "
+            f'{config.rate:g} Hz')
 
     def _tick(self) -> None:
         now = self.get_clock().now()
         if self.start is None:
             self.start = now
         t = (now - self.start).nanoseconds * 1e-9
-        msg = Reference(mode=self.mode, value=profile_value(self.values, self.steps, t))
+        msg = Reference(mode=self.mode, value=profile_value(self.config, self.steps, t))
         msg.header.stamp = now.to_msg()
         self.publisher.publish(msg)
         self.published += 1
         self.last_value = msg.value
 
     def _report(self):
-        values = {'profile': self.values['profile'], 'mode': self.values['mode'],
+        values = {'profile': self.config.profile, 'mode': self.config.mode,
                   'references published': self.published}
         if not self.published:
             return OK, 'starting', values
-        return OK, f"{self.values['profile']}: {self.last_value:.4g} " \
+        return OK, f'{self.config.profile}: {self.last_value:.4g} ' \
                    f"{'rad' if self.mode == Reference.ANGLE else 'N m'}", values
 
 

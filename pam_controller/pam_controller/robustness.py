@@ -41,12 +41,18 @@ import numpy as np
 from numba import njit
 
 from pam_estimator.evaluation import run_ukf
-from pam_estimator.pam_ukf import DEFAULT_TUNING, INFO_FIELDS, INFO_TORQUE, ukf_step
+from pam_estimator.pam_ukf import (
+    DEFAULT_TUNING,
+    INFO_FIELDS,
+    INFO_TORQUE,
+    FilterSettings,
+    ukf_step,
+)
 from pam_estimator.valid_readings import NIS_GATE_OFF, PRESSURE_MAX, PRESSURE_MIN
 from pam_model.effects import Effects
 from pam_model.metrics import metrics
 from pam_model.mismatch import MismatchScenario
-from pam_model.model import PamModel
+from pam_model.model import KernelModel, PamModel
 from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import joint_torque, muscle_forces
 from pam_model.profiles import step_reference_profile, validation_profile
@@ -111,10 +117,10 @@ def ukf_runs_kernel(p_measured, U, x0s, est_arrays, h, kappa_u, kappa_alpha, fri
         F1, F2 = muscle_forces(x[0], x[2], x[3], p_array[0], force_model)
         psi[b, 0] = x[0]
         tau[b, 0] = joint_torque(x[0], F1, F2, p_array[0])
+        model = KernelModel(h, p_array, kappa_u, kappa_alpha, friction_law, force_model, locked)
+        settings = FilterSettings(Q, R, x0s[b, 0], NIS_GATE_OFF, PRESSURE_MIN, PRESSURE_MAX)
         for k in range(1, n):
-            ukf_step(x, P, U[k - 1], p_measured[b, k], Q, R, h, p_array, kappa_u, kappa_alpha,
-                     friction_law, force_model, locked, x0s[b, 0], NIS_GATE_OFF, PRESSURE_MIN,
-                     PRESSURE_MAX, info)
+            ukf_step(x, P, U[k - 1], p_measured[b, k], model, settings, info)
             psi[b, k] = x[0]
             tau[b, k] = info[INFO_TORQUE]
     return psi, tau

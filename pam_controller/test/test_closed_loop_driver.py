@@ -78,7 +78,7 @@ STARTUP = 45.0            # s, a fresh process on a loaded 2-core machine
 PRE = 2.0                 # s at reference 0 once the loop runs (and the driver is armed)
 HOLD = 6.0                # s at the step's level
 LAST = 1.0                # s, steady-state window at the end of HOLD
-NOISE_STD = 2000.0        # Pa, the 'mild' scenario's sensor noise (sim_node's with mismatch:=mild)
+NOISE_STD = 2000.0        # Pa, the 'mild' scenario's sensor noise (sim_node's with scenario:=mild)
 MIN_RATE = 800.0          # Hz of /pam/joint_measured in the steady-state window
 INITIAL_COMMAND = ('5.5', '5.5')   # V: valves before the controller's first command, as sim_node
 ATTEMPTS = 2              # a disturbed run (safe output, device lost, no feedback, rate): redone
@@ -139,7 +139,7 @@ def start_rig(node_process, tmp_path, rig: str, mode: str) -> list:
                                             '-p', 'watchdog_timeout:=0.5',
                                             '-p', 'stream_timeout:=1.0')]
     else:
-        processes = [node_process('sim_node', 'pam_driver', '-p', 'mismatch:=mild',
+        processes = [node_process('sim_node', 'pam_driver', '-p', 'scenario:=mild',
                                   '-p', f'pressure_noise_std:={NOISE_STD}',
                                   '-p', f'joint_mode:={joint_mode}', '-p', 'timing:=realtime')]
     processes.append(node_process('ukf_node', 'pam_estimator', '-p', f'joint_mode:={joint_mode}'))

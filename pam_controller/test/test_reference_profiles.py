@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from pam_common.node_params import ConfigError, defaults
-from pam_controller.reference_node import PARAMETERS, check_values, profile_value, step_levels
+from pam_controller.reference_node import PARAMETERS, build_config, profile_value, step_levels
 from pam_interfaces.msg import Reference
 
 
 def values(**overrides):
     v = defaults(PARAMETERS)
     v.update(overrides)
-    return check_values(v)
+    return build_config(v)
 
 
 def test_steps_stay_within_the_amplitude_and_hold():

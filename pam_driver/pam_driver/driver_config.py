@@ -1,9 +1,12 @@
-"""Parameters of driver_node: the table, their validation and the --help text (no ROS in here)."""
+"""Parameters of driver_node: the table, their validation, the --help text and the checked
+DriverConfig built from them once (no ROS in here)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
 from pam_common.joint_states import check_joint_states, joint_state_params
 from pam_common.node_params import (
@@ -20,9 +23,14 @@ from pam_common.node_params import (
     usage_text as _usage_text,
     wants_help,
 )
-from pam_common.realtime_knobs import REALTIME_PARAMS
+from pam_common.realtime_knobs import REALTIME_PARAMS, RealtimeRequest, check_realtime
+from pam_driver.driver_core import SafetyConfig
 
-__all__ = ['PARAMETERS', 'ConfigError', 'build_config', 'usage_text', 'wants_help']
+if TYPE_CHECKING:
+    from pam_driver.calibration import Calibration
+
+__all__ = ['PARAMETERS', 'ConfigError', 'DriverConfig', 'LinkConfig', 'build_config',
+           'usage_text', 'wants_help']
 
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('port', '/dev/ttyUSB0', 'string', '',
@@ -96,8 +104,45 @@ def usage_text(prog: str = 'driver_node') -> str:
     ))
 
 
-def build_config(overrides: Mapping[str, Any] | None = None) -> dict:
-    """Checked parameter values plus 'calibration' (a Calibration). Raises ConfigError."""
+@dataclass(frozen=True)
+class LinkConfig:
+    """The serial session's parameters (serial_session.SerialSession): the port and its baud
+    rate, handshake_timeout s to wait for HELLO_ACK, stream_timeout s without a sample before
+    the device counts as lost, heartbeat_period s between HEARTBEAT frames, reconnect_backoff
+    (first, max) s between connection attempts (doubled after each failure)."""
+
+    port: str
+    baud: int
+    handshake_timeout: float
+    stream_timeout: float
+    heartbeat_period: float
+    reconnect_backoff: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class DriverConfig:
+    """The checked configuration of driver_node, built once by build_config (ConfigError naming
+    the parameter otherwise): the serial link, the safety decisions' parameters, the
+    calibration (counts <-> SI units), the published headers and JointState, the real-time
+    request, and the fault injection of the tests (inject_internal_error s, 0: never)."""
+
+    link: LinkConfig
+    safety: SafetyConfig
+    calibration: Calibration
+    frame_id: str
+    hardware_id: str
+    joint_name: str
+    joint_states_rate: float            # Hz, 0: not published
+    realtime: RealtimeRequest
+    inject_internal_error: float
+    #: the checked parameter values it was built from (read-only)
+    values: Mapping[str, Any] = field(repr=False, compare=False,
+                                      default_factory=lambda: MappingProxyType({}))
+
+
+def build_config(overrides: Mapping[str, Any] | None = None) -> DriverConfig:
+    """Check the parameter values (defaults for those not given) and load the calibration.
+    Raises ConfigError naming the parameter."""
     from pam_driver.calibration import CalibrationError, load
     values = check_all(PARAMETERS, merge_overrides(PARAMETERS, overrides))
     if not values['port'].strip():
@@ -116,11 +161,23 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> dict:
         fail('reconnect_backoff', f'need 0 < first <= max <= 60 s, got {b}')
     values['reconnect_backoff'] = b
     check_joint_states(values, None)      # the board's rate: checked at the handshake
+    check_realtime(values)
     try:
-        values['calibration'] = load(values['calibration_file'])
+        calibration = load(values['calibration_file'])
     except CalibrationError as exc:
         fail('calibration_file', str(exc))
-    return values
+    v = values
+    try:
+        safety = SafetyConfig.from_values(v)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from exc
+    return DriverConfig(
+        link=LinkConfig(v['port'], v['baud'], v['handshake_timeout'], v['stream_timeout'],
+                        v['heartbeat_period'], (b[0], b[1])),
+        safety=safety, calibration=calibration, frame_id=v['frame_id'],
+        hardware_id=v['hardware_id'], joint_name=v['joint_name'],
+        joint_states_rate=v['joint_states_rate'], realtime=RealtimeRequest.from_values(v),
+        inject_internal_error=v['inject_internal_error'], values=MappingProxyType(values))
 
 
 __all__ += ['SUMMARY', 'U_MAX', 'U_MIN']

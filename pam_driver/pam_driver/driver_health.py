@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-OK, WARN, ERROR = 0, 1, 2     # diagnostic_msgs/DiagnosticStatus levels
+from pam_common.levels import ERROR, OK, WARN
 
 #: the counters whose growth since the last status is a WARN
 FAULT_COUNTERS = ('crc errors', 'garbage bytes', 'lost frames', 'protocol errors',
@@ -37,7 +37,7 @@ class DriverHealth:
 
     reported: dict = field(default_factory=dict)
 
-    def judge(self, values: dict, state: SafetyState) -> tuple[int, str]:
+    def judge(self, values: dict, state: SafetyState) -> tuple[bytes, str]:
         """(level, message) of a status with these /diagnostics `values` (they hold the
         FAULT_COUNTERS, BOARD_VENTS, 'device refused' and 'achieved rate (Hz)')."""
         vents = values[BOARD_VENTS] - self.reported.get(BOARD_VENTS, 0)

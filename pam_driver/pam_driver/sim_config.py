@@ -73,10 +73,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "Table II parameter set of the simulated plant: 'default' (PAM2's p_w2 corrected to "
               "+15.75 N), 'printed' (as printed in the paper) or the path of a Table II YAML "
               'file.'),
-    ParamSpec('mismatch', '', 'string', '',
-              "Plant mismatch scenario applied to plant_parameters: '' (none), 'mild', 'strong' "
-              'or the path of a scenario YAML file. A scenario also brings its pressure sensor '
-              'model.'),
+    ParamSpec('scenario', '', 'string', '',
+              "Plant scenario (parameter mismatch and unmodelled effects) applied to "
+              "plant_parameters: '' (none), 'mild', 'strong', 'realistic', 'other_forms' or the "
+              'path of a scenario YAML file. A scenario also brings its pressure sensor model.',
+              aliases=('mismatch',)),
     ParamSpec('valve_map', 'default', 'string', '',
               "Valve map kappa(u) of the plant: 'default' (shipped table) or the path of a "
               'voltage_V,alpha CSV file.'),
@@ -94,10 +95,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Valve voltages [u1, u2] held until the first valve_command arrives, in [0, 10].'),
     ParamSpec('pressure_noise_std', -1.0, 'double', 'Pa',
               'Standard deviation of the white noise on each pressure reading; negative: from '
-              'the mismatch scenario, or 0 (ideal) if none.', range=NOISE_RANGE),
+              'the scenario, or 0 (ideal) if none.', range=NOISE_RANGE),
     ParamSpec('quantisation_bits', -1, 'integer', 'bits',
               'ADC resolution of the pressure sensors over their range; 0: no quantisation; -1: '
-              'from the mismatch scenario, or ideal if none.', range=BITS_RANGE),
+              'from the scenario, or ideal if none.', range=BITS_RANGE),
     ParamSpec('seed', 0, 'integer', '',
               'Seed of the sensor noise generator (same seed + same commands in lockstep give '
               'bit-identical pressures).', range=SEED_RANGE),
@@ -117,7 +118,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               range=CATCH_UP_RANGE),
     ParamSpec('publish_supply_pressure', False, 'bool', '',
               "Publish supply_pressure (sensor_msgs/FluidPressure, Pa abs): the plant's supply "
-              'tank pressure P_tank of every sample (with the droop and ripple of the mismatch '
+              'tank pressure P_tank of every sample (with the droop and ripple of the '
               "scenario's effects, if any; else nominal) through the pressure sensor model, "
               'stamped like pressures: a supply-pressure transducer.'),
     ParamSpec('publish_clock', False, 'bool', '',
@@ -161,7 +162,7 @@ SUMMARY = (
 def usage_text(prog: str = 'sim_node') -> str:
     """The --help text: what the node does and every parameter with type, unit and default."""
     return _usage_text(prog, SUMMARY, PARAMETERS, examples=(
-        f'{prog} --ros-args -p timing:=lockstep -p mismatch:=mild -p seed:=3',
+        f'{prog} --ros-args -p timing:=lockstep -p scenario:=mild -p seed:=3',
         f'{prog} --ros-args --params-file <share>/pam_driver/config/sim_node_mild.yaml',
     ))
 
@@ -184,13 +185,13 @@ class SimConfig:
     publish_supply_pressure: bool
     joint_mode: str                     # 'free' or 'locked'
     plant_parameters: str
-    mismatch: str
+    scenario_name: str                  # the scenario parameter ('' none)
     frame_id: str
     hardware_id: str
     joint_name: str
     joint_states_rate: float
     realtime: RealtimeRequest
-    parameters: Parameters              # of the plant (mismatch applied)
+    parameters: Parameters              # of the plant (the scenario applied)
     scenario: MismatchScenario | None
     sensor: PressureSensor
     model: PamModel
@@ -244,15 +245,15 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
         fail('plant_parameters', str(exc))
     scenario = None
     params = nominal
-    if values['mismatch'].strip():
+    if values['scenario'].strip():
         try:
-            scenario = load_scenario(values['mismatch'])
+            scenario = load_scenario(values['scenario'])
         except (ParameterError, ValueError) as exc:
-            fail('mismatch', str(exc))
+            fail('scenario', str(exc))
         try:
             params = scenario.apply(nominal)
         except (ParameterError, ValueError) as exc:
-            fail('mismatch', f'applied to {values["plant_parameters"]!r}: {exc}')
+            fail('scenario', f'applied to {values["plant_parameters"]!r}: {exc}')
     try:
         valve_map = load_valve_map(values['valve_map'])
     except (ValueError, OSError) as exc:
@@ -261,7 +262,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
     base = scenario.sensor if scenario is not None else PressureSensor()
     noise = values['pressure_noise_std']
     bits = values['quantisation_bits']
-    origin = f"mismatch '{scenario.name}'" if scenario is not None else 'ideal'
+    origin = f"scenario '{scenario.name}'" if scenario is not None else 'ideal'
     noise_from = origin if noise < 0.0 else 'parameter'
     bits_from = origin if bits < 0 else 'parameter'
     try:
@@ -290,7 +291,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
         lockstep_timeout=v['lockstep_timeout'], max_catch_up=v['max_catch_up'],
         publish_clock=v['publish_clock'], publish_supply_pressure=v['publish_supply_pressure'],
         joint_mode=v['joint_mode'], plant_parameters=v['plant_parameters'],
-        mismatch=v['mismatch'], frame_id=v['frame_id'], hardware_id=v['hardware_id'],
+        scenario_name=v['scenario'], frame_id=v['frame_id'], hardware_id=v['hardware_id'],
         joint_name=v['joint_name'], joint_states_rate=v['joint_states_rate'],
         realtime=RealtimeRequest.from_values(v), parameters=params, scenario=scenario,
         sensor=sensor, model=model, sensor_source=sensor_text, values=MappingProxyType(values))
@@ -305,20 +306,20 @@ def describe(config: SimConfig) -> list[str]:
     """The start-up log lines: what runs."""
     v = config.values
     if config.scenario is None:
-        mismatch = 'mismatch: none (plant = nominal parameters)'
+        scenario = 'scenario: none (plant = nominal parameters)'
     else:
         s = config.scenario
         changes = [f'{k} x{f:g}' for k, f in s.factors.items()]
         changes += [f'{k} {o:+g}' for k, o in s.offsets.items()]
-        source = '' if v['mismatch'] == s.name else f" ({v['mismatch']})"
-        mismatch = (f"mismatch: '{s.name}'{source}: "
+        source = '' if v['scenario'] == s.name else f" ({v['scenario']})"
+        scenario = (f"scenario: '{s.name}'{source}: "
                     + (', '.join(changes) if changes else 'no parameter change')
                     + f'; unmodelled effects: {s.effects.describe()}')
     state = v['initial_state']
     lines = [
         f"plant: parameters {v['plant_parameters']!r}, valve map {v['valve_map']!r}, friction "
         f"law {v['friction_law']!r}, force model {v['force_model']!r}",
-        mismatch,
+        scenario,
         f"joint mode: {v['joint_mode']}; initial state psi {state[0]:g} rad, psi_dot "
         f"{state[1]:g} rad/s, P1 {state[2]:g} Pa, P2 {state[3]:g} Pa; initial command "
         f"u1 {v['initial_command'][0]:g} V, u2 {v['initial_command'][1]:g} V",

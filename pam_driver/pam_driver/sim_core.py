@@ -192,7 +192,7 @@ class SimCore:
                 'last command received (V)': self.last_raw_command,
                 'joint mode': config.joint_mode,
                 'plant parameters': config.plant_parameters,
-                'mismatch': config.mismatch or 'none',
+                'scenario': config.scenario_name or 'none',
                 'supply_pressure published': self.supply is not None,
                 'non-finite samples suppressed': self.nonfinite_samples,
                 'last sample counter': rig.k + 1,

@@ -390,8 +390,8 @@ class SimNode(LinkedNode):
         return self.core.report(time.monotonic())
 
 
-def started_sim_node(**node_kwargs) -> SimNode:
-    """A configured SimNode that samples (ConfigError if its parameters are invalid);
+def configured_sim_node(**node_kwargs) -> SimNode:
+    """A configured SimNode, not sampling yet (ConfigError if its parameters are invalid);
     `node_kwargs` go to rclpy's Node (namespace, cli_args, ...)."""
     node = SimNode(**node_kwargs)
     try:
@@ -399,12 +399,11 @@ def started_sim_node(**node_kwargs) -> SimNode:
     except ConfigError:
         node.destroy_node()
         raise
-    node.start()
     return node
 
 
 #: The node as a component of a composed process (pam_container, pam-bringup --composed).
-COMPONENT = Component(NODE_NAME, started_sim_node, stop=lambda node: node.stop())
+COMPONENT = Component(NODE_NAME, configured_sim_node, start=SimNode.start, stop=SimNode.stop)
 
 
 def main(args=None) -> int:

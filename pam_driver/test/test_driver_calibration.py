@@ -83,7 +83,7 @@ def test_driver_config_reports_calibration_errors(tmp_path):
         build_config({'calibration_file': str(path)})
     with pytest.raises(ConfigError, match='valve_limits'):
         build_config({'valve_limits': [5.0, 1.0]})
-    assert build_config({'calibration_file': str(SHIPPED)})['watchdog_timeout'] == 0.05
+    assert build_config({'calibration_file': str(SHIPPED)}).safety.watchdog_timeout == 0.05
 
 
 def test_the_supply_channel_is_optional(tmp_path):

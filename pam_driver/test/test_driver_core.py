@@ -22,7 +22,7 @@ T0 = 100.0               # s, a monotonic time
 
 def make(connected: bool = True, **overrides) -> DriverCore:
     """A core with driver_config's defaults (and overrides), connected unless told."""
-    core = DriverCore(SafetyConfig.from_values(build_config(overrides)), CAL)
+    core = DriverCore(build_config(overrides).safety, CAL)
     if connected:
         core.on_connected()
     return core
@@ -196,7 +196,7 @@ def test_arm_asks_for_the_boards_arm_only_from_a_device_that_takes_it():
     """A 1.2 device (on_connected(device_arm=True)): a granted ~/arm carries device_arm (the
     node sends ARM before anything else), counted on /diagnostics; refused, it does not; the
     next session's device decides again."""
-    core = DriverCore(SafetyConfig.from_values(build_config({})), CAL)
+    core = DriverCore(build_config({}).safety, CAL)
     core.on_connected(device_arm=True)
     trip_watchdog(core)
     action = core.on_arm()

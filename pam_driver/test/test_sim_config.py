@@ -17,7 +17,7 @@ from pam_driver.sim_config import (
 )
 from pam_model.model_choices import ForceModel, FrictionLaw
 
-CONTRACT = ('plant_parameters', 'mismatch', 'friction_law', 'force_model', 'joint_mode',
+CONTRACT = ('plant_parameters', 'scenario', 'friction_law', 'force_model', 'joint_mode',
             'initial_state', 'initial_command', 'pressure_noise_std', 'quantisation_bits',
             'seed', 'timing', 'rate', 'publish_clock', 'lockstep_timeout', 'frame_id')
 
@@ -31,7 +31,7 @@ def test_contract_parameters_and_defaults():
     assert d['initial_command'] == [5.5, 5.5]
     assert d['rate'] == 1000.0 and d['lockstep_timeout'] == 0.5
     assert d['quantisation_bits'] == -1 and d['seed'] == 0 and d['publish_clock'] is False
-    assert d['timing'] == 'realtime' and d['frame_id'] == 'pam_joint' and d['mismatch'] == ''
+    assert d['timing'] == 'realtime' and d['frame_id'] == 'pam_joint' and d['scenario'] == ''
     assert d['max_catch_up'] == 10
 
 
@@ -59,27 +59,27 @@ def test_default_configuration():
     assert rig.u == (5.5, 5.5)
     assert list(rig.x) == [0.0, 0.0, 450000.0, 450000.0]
     assert any(line.startswith('timing: realtime at 1000 Hz') for line in config.summary)
-    assert any('mismatch: none' in line for line in config.summary)
+    assert any('scenario: none' in line for line in config.summary)
 
 
 def test_mild_mismatch_brings_its_sensor_unless_overridden():
-    config = build_config({'mismatch': 'mild'})
+    config = build_config({'scenario': 'mild'})
     nominal = build_config({}).parameters
     assert config.scenario.name == 'mild'
     assert config.sensor.noise_std == 2000.0 and config.sensor.bits == 12
     assert config.parameters.mu_s == pytest.approx(1.2 * nominal.mu_s)
-    assert "mismatch: 'mild'" in ' '.join(config.summary)
-    tuned = build_config({'mismatch': 'mild', 'pressure_noise_std': 0.0, 'quantisation_bits': 0})
+    assert "scenario: 'mild'" in ' '.join(config.summary)
+    tuned = build_config({'scenario': 'mild', 'pressure_noise_std': 0.0, 'quantisation_bits': 0})
     assert tuned.sensor.noise_std == 0.0 and tuned.sensor.bits == 0
     explicit = build_config({'pressure_noise_std': 500.0, 'quantisation_bits': 10})
     assert explicit.sensor.noise_std == 500.0 and explicit.sensor.bits == 10
 
 
 def test_realistic_mismatch_brings_its_effects_to_the_rig():
-    config = build_config({'mismatch': 'realistic'})
+    config = build_config({'scenario': 'realistic'})
     assert config.scenario.effects.active
     assert config.make_rig().plant is not None
-    assert build_config({'mismatch': 'mild'}).make_rig().plant is None
+    assert build_config({'scenario': 'mild'}).make_rig().plant is None
     assert 'unmodelled effects: valve lag 5 ms' in ' '.join(config.summary)
 
 
@@ -99,7 +99,7 @@ def test_options_reach_the_model():
     ({'timing': 'fast'}, ['timing', 'lockstep']),
     ({'plant_parameters': '/nonexistent.yaml'}, ['plant_parameters', 'cannot read']),
     ({'plant_parameters': ' '}, ['plant_parameters', 'empty']),
-    ({'mismatch': 'wild'}, ['mismatch', 'wild']),
+    ({'scenario': 'wild'}, ['scenario', 'wild']),
     ({'valve_map': '/nonexistent.csv'}, ['valve_map']),
     ({'initial_state': [0.0, 0.0, 4e5]}, ['initial_state', '4 numbers']),
     ({'initial_state': [0.0, 0.0, math.nan, 4e5]}, ['initial_state', 'finite']),
@@ -131,8 +131,8 @@ def test_malformed_files_carry_pam_model_messages(tmp_path):
         build_config({'plant_parameters': str(plant)})
     scenario = tmp_path / 'scenario.yaml'
     scenario.write_text('factors:\n  mu_s: -1.0\n')
-    with pytest.raises(ConfigError, match=r"mismatch.*mu_s"):
-        build_config({'mismatch': str(scenario)})
+    with pytest.raises(ConfigError, match=r"scenario.*mu_s"):
+        build_config({'scenario': str(scenario)})
 
 
 def test_usage_text_lists_every_parameter():
@@ -166,3 +166,12 @@ def test_the_configuration_is_frozen_and_typed():
         config.values['rate'] = 500.0
     with pytest.raises(ConfigError, match='cpu_affinity'):
         build_config({'cpu_affinity': [-1]})
+
+
+def test_the_old_parameter_name_mismatch_is_read_as_scenario():
+    """'mismatch' (the name of earlier releases, in users' params files) is the same parameter;
+    both names with different values is an error naming them."""
+    assert build_config({'mismatch': 'mild'}).scenario_name == 'mild'
+    assert build_config({'mismatch': 'mild', 'scenario': 'mild'}).scenario_name == 'mild'
+    with pytest.raises(ConfigError, match=r"'scenario'.*old name 'mismatch'"):
+        build_config({'mismatch': 'mild', 'scenario': 'strong'})

@@ -15,7 +15,7 @@ H_NS = 1_000_000      # ns, the model step at the default 1 kHz
 
 
 def lockstep_core(**overrides) -> SimCore:
-    return SimCore(build_config({'timing': 'lockstep', 'mismatch': 'mild', **overrides}),
+    return SimCore(build_config({'timing': 'lockstep', 'scenario': 'mild', **overrides}),
                    start=0.0)
 
 

@@ -11,7 +11,7 @@ EXIT_TIMEOUT = 30.0   # s; a bad configuration is detected before any sampling s
 
 # The parameter contract of sim_node (names, and a unit or default shown by --help).
 CONTRACT = {
-    'plant_parameters': "'default'", 'mismatch': "''", 'friction_law': "'proposed'",
+    'plant_parameters': "'default'", 'scenario': "''", 'friction_law': "'proposed'",
     'force_model': "'proposed'", 'joint_mode': "'free'",
     'initial_state': '[0.0, 0.0, 450000.0, 450000.0]', 'initial_command': '[5.5, 5.5]',
     'pressure_noise_std': 'Pa', 'quantisation_bits': '-1', 'seed': '0',
@@ -31,6 +31,7 @@ def test_help_lists_every_parameter(sim_node):
         assert shown in lines[name], f'--help line of {name!r} lacks {shown!r}: {lines[name]}'
     for unit in ('Hz', 'Pa', 'rad', ' V', ' s'):
         assert unit in text
+    assert '(old name: mismatch)' in lines['scenario'], lines['scenario']
 
 
 @pytest.mark.parametrize('args, expected', [
@@ -57,14 +58,23 @@ def test_invalid_parameter_exits_with_a_clear_error(sim_node, args, expected):
     assert time.monotonic() - start < EXIT_TIMEOUT
 
 
-def test_malformed_mismatch_file_is_reported(sim_node, tmp_path):
+def test_malformed_scenario_file_is_reported(sim_node, tmp_path):
     bad = tmp_path / 'bad_scenario.yaml'
     bad.write_text('name: bad\nfactors:\n  no_such_key: 2.0\n')
-    sim = sim_node('-p', f'mismatch:={bad}')
+    sim = sim_node('-p', f'scenario:={bad}')
     assert sim.wait_exit(EXIT_TIMEOUT) != 0
     err = sim.stderr
     assert 'Traceback' not in err, err
-    assert 'mismatch' in err and 'no_such_key' in err, err
+    assert "parameter 'scenario'" in err and 'no_such_key' in err, err
+
+
+def test_the_old_parameter_name_still_works_with_a_warning(sim_node):
+    """-p mismatch:=mild (the name of earlier releases) is read as scenario, with a warning
+    saying so; the node declares only scenario."""
+    sim = sim_node('-p', 'mismatch:=mild', '-p', 'timing:=lockstep')
+    sim.wait_for(lambda: "scenario: 'mild'" in sim.stderr, EXIT_TIMEOUT, 'the scenario line')
+    assert "parameter 'mismatch' is the old name of 'scenario'" in sim.stderr, sim.stderr
+    assert 'ignoring unknown parameter' not in sim.stderr, sim.stderr
 
 
 def test_unknown_command_line_argument(sim_node):

@@ -213,10 +213,10 @@ def test_namespace_remap_overrides_the_default(sim_node, probe, helpers):
 @pytest.mark.parametrize('scenario, effect', [('realistic', 'valve lag 5 ms'),
                                               ('other_forms', '2nd-order valve 30 Hz')])
 def test_realistic_plant_keeps_1khz(sim_node, probe, helpers, scenario, effect):
-    """-p mismatch:=realistic (or other_forms, the second family): the plant with unmodelled
+    """-p scenario:=realistic (or other_forms, the second family): the plant with unmodelled
     effects still samples at 1 kHz with finite pressures, and the start-up log names its
     effects."""
-    sim = sim_node('-p', f'mismatch:={scenario}')
+    sim = sim_node('-p', f'scenario:={scenario}')
     got = probe.subscribe(Pressures, '/pam/pressures')
     sim.wait_for(lambda: len(got) > 0, STARTUP, 'the first /pam/pressures sample')
     time.sleep(0.5)

@@ -33,10 +33,10 @@ def _hold(publisher, u: float) -> float:
 
 
 def test_supply_pressure_droops_when_both_valves_open(sim_node, probe, helpers):
-    config = build_config({'mismatch': 'realistic'})
+    config = build_config({'scenario': 'realistic'})
     effects = config.scenario.effects
     p_tank, noise = config.parameters.P_tank, config.sensor.noise_std
-    sim = sim_node('-p', 'mismatch:=realistic', '-p', 'publish_supply_pressure:=true',
+    sim = sim_node('-p', 'scenario:=realistic', '-p', 'publish_supply_pressure:=true',
                    '-p', 'initial_command:=[0.0, 0.0]')
     supply = probe.subscribe(FluidPressure, '/pam/supply_pressure', depth=5000)
     pressures = probe.subscribe(Pressures, '/pam/pressures', depth=5000)

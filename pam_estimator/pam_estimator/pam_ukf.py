@@ -196,22 +196,36 @@ def estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model
     info[INFO_FINITE] = finite
 
 
+class FilterSettings(NamedTuple):
+    """The filter's fixed settings as the kernels take them, in one record: Q (n, n) and R
+    (2, 2) in the state's and the measurement's SI units squared, lock_angle (rad, where a
+    locked joint is held), nis_gate (0: off) and the valid readings [y_min, y_max] (Pa abs)."""
+
+    Q: np.ndarray
+    R: np.ndarray
+    lock_angle: float
+    nis_gate: float
+    y_min: float
+    y_max: float
+
+
 @njit(cache=True)
-def ukf_step(x, P, u_prev, y, Q, R, h, p_array, kappa_u, kappa_alpha, friction_law, force_model,
-             locked, lock_angle, nis_gate, y_min, y_max, info):
+def ukf_step(x, P, u_prev, y, model, settings, info):
     """One predict + update of the paper's model, in place: x (4,) and P (4, 4) become the
     posterior and info (10,) receives INFO_FIELDS (nis is 0 when the measurement was not valid).
-    If the posterior were not finite, x and P are left unchanged and info[INFO_FINITE] = 0. p_array:
-    Parameters record array."""
-    p = p_array[0]
-    alpha1 = valve_opening(u_prev[0], kappa_u, kappa_alpha)
-    alpha2 = valve_opening(u_prev[1], kappa_u, kappa_alpha)
+    If the posterior were not finite, x and P are left unchanged and info[INFO_FINITE] = 0.
+    model: a pam_model KernelModel; settings: a FilterSettings."""
+    alpha1 = valve_opening(u_prev[0], model.kappa_u, model.kappa_alpha)
+    alpha2 = valve_opening(u_prev[1], model.kappa_u, model.kappa_alpha)
     sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
-    sigmas_f = propagate(sigmas, alpha1, alpha2, h, p, friction_law, force_model, locked)
-    x_post, P_post = correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, y_min, y_max, info)
+    sigmas_f = propagate(sigmas, alpha1, alpha2, model.h, model.p_array[0], model.friction_law,
+                         model.force_model, model.locked)
+    x_post, P_post = correct(sigmas_f, settings.Q, settings.R, y, model.locked,
+                             settings.lock_angle, settings.nis_gate, settings.y_min,
+                             settings.y_max, info)
     info[INFO_REPAIRS] += int(rep1)
-    estimate_outputs(x, P, x_post, P_post, h, p_array, friction_law, force_model, locked, 0.0,
-                     0.0, info)
+    estimate_outputs(x, P, x_post, P_post, model.h, model.p_array, model.friction_law,
+                     model.force_model, model.locked, 0.0, 0.0, info)
 
 
 @njit(cache=True)
@@ -319,6 +333,7 @@ class PamUkf:
         self._sensor_gain = 1.0 + np.asarray(e.sensor_gain_error)
         self._sensor_offset = np.asarray(e.sensor_offset)
         self._record = self.model.params_array.copy()    # P_tank of a step written here
+        self._kernel_model = self.model.kernel_model()
         self._extended = e.active or self.bias_states is not None
         self.reset()
 
@@ -345,6 +360,8 @@ class PamUkf:
         self.x, self.P = x, 0.5 * (P + P.T)
         self._info = np.zeros(len(INFO_FIELDS))
         self.lock_angle = float(x[0])
+        self._settings = FilterSettings(self._Q, self._R, self.lock_angle, float(self.nis_gate),
+                                        float(self.y_range[0]), float(self.y_range[1]))
         self.steps = 0
         self.rejected_samples = 0     # invalid measurements (non-finite, out of range)
         self.gated_samples = 0        # innovations rejected by the NIS gate
@@ -371,9 +388,7 @@ class PamUkf:
         if self._extended or supply is not None:
             self._step_with_effects(y, u_prev, supply)
         else:
-            ukf_step(self.x, self.P, u_prev, y, self._Q, self._R, m.h, m.params_array,
-                     m.valve_map.u, m.valve_map.alpha, m.friction_code, m.force_code, m.locked,
-                     self.lock_angle, self.nis_gate, self.y_range[0], self.y_range[1], info)
+            ukf_step(self.x, self.P, u_prev, y, self._kernel_model, self._settings, info)
         nis, valid, accepted, repairs, F1, F2, tau, tau_var, sigma, finite = info.tolist()
         if not finite:
             # cannot happen with the model's guards; never hand out NaN if it ever does:

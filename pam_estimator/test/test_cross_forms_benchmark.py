@@ -34,7 +34,7 @@ def test_calibration_bags_and_sim_node_take_other_forms(tmp_path):
                                   '--scenario', 'other_forms']) == 0
     run = load_run(tmp_path / 'locked_0deg')
     assert np.all(np.isfinite(run.p_measured)) and len(run.t) > 5000
-    config = build_config({'mismatch': 'other_forms'})
+    config = build_config({'scenario': 'other_forms'})
     assert config.make_rig().plant is not None
     assert 'Bouc-Wen +2.5 N' in ' '.join(config.summary)
 

@@ -5,6 +5,7 @@ free or locked joint) with the scalar and vectorised step, and the measured outp
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -14,6 +15,20 @@ from .parameters import Parameters, load_parameters
 from .valve_map import ValveMap, load_valve_map
 
 T_S = 1.0e-3  # s, sample period of the rig (1 kHz)
+
+
+class KernelModel(NamedTuple):
+    """A configured model as the compiled (numba) kernels take it, in one record: step h (s),
+    the Parameters record array (1,), the valve map's nodes kappa_u (V) and kappa_alpha (-),
+    the friction law's and force model's codes, and whether the joint is locked."""
+
+    h: float
+    p_array: np.ndarray
+    kappa_u: np.ndarray
+    kappa_alpha: np.ndarray
+    friction_law: int
+    force_model: int
+    locked: bool
 
 
 @dataclass(frozen=True)
@@ -45,6 +60,13 @@ class PamModel:
             object.__setattr__(self, name, value)
         if not (np.isfinite(self.h) and self.h > 0.0):
             raise ValueError(f'step h must be > 0 s, got {self.h!r}')
+
+    def kernel_model(self, p_array: np.ndarray | None = None) -> KernelModel:
+        """This model as the kernels take it; `p_array` replaces params_array (e.g. a copy whose
+        P_tank a step writes)."""
+        return KernelModel(float(self.h), self.params_array if p_array is None else p_array,
+                           self.valve_map.u, self.valve_map.alpha, int(self.friction_code),
+                           int(self.force_code), bool(self.locked))
 
     def openings(self, u) -> np.ndarray:
         """alpha = kappa(u) for voltages u (V), any shape."""
