@@ -61,12 +61,10 @@ import time
 from collections.abc import Callable
 
 from rclpy.logging import LoggingSeverity
-from sensor_msgs.msg import FluidPressure, JointState
+from sensor_msgs.msg import FluidPressure
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import DiagnosticsPublisher
-from pam_common.finite_guard import FiniteGuard
-from pam_common.joint_states import JointStates
 from pam_common.latency import CommandTiming
 from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
@@ -78,9 +76,6 @@ from pam_common.timing import RateStatistics
 from pam_common.topics import (
     APPLIED_COMMAND,
     DEFAULT_NAMESPACE,
-    JOINT_MEASURED,
-    JOINT_STATES,
-    PRESSURES,
     SUPPLY_PRESSURE,
     VALVE_COMMAND,
 )
@@ -89,6 +84,7 @@ from pam_driver.calibration import SUPPLY
 from pam_driver.driver_config import PARAMETERS, DriverConfig, build_config, usage_text
 from pam_driver.driver_core import Action, DriverCore
 from pam_driver.driver_health import DriverHealth, SafetyState
+from pam_driver.rig_publishers import rig_publishers
 from pam_driver.serial_session import SerialSession
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 
@@ -125,17 +121,11 @@ class DriverNode(LinkedNode):
         self._supply_value = math.nan        # Pa abs, the last one published
         self._supply_dropped = 0             # readings not published (implausible, missing)
 
-        self._guard = FiniteGuard(self.get_logger())
-        self._pub_pressures = self._guard.wrap(
-            self.create_publisher(Pressures, PRESSURES, SAMPLE_QOS), hold=True)
-        self._pub_joint = self._guard.wrap(
-            self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
-        # the joint as JointState (pam_common.joint_states); the board's rate comes at the
-        # handshake
-        rate = config.joint_states_rate
-        self._joint_states = JointStates(
-            self._guard.wrap(self.create_publisher(JointState, JOINT_STATES, SAMPLE_QOS))
-            if rate else None, JointState(), config.joint_name, self._frame_id, rate, None)
+        # the board's sample rate (for the JointState's samples) comes at the handshake
+        rig = rig_publishers(self, self._frame_id, config.joint_name, config.joint_states_rate,
+                             None)
+        self._guard, self._pub_pressures, self._pub_joint, self._joint_states = (
+            rig.guard, rig.pressures, rig.joint, rig.joint_states)
         self._pub_applied = self._guard.wrap(
             self.create_publisher(ValveCommand, APPLIED_COMMAND, LATEST_QOS),
             safe=dict(zip(('u1', 'u2'), config.safety.safe_output, strict=True)), whole=True)

@@ -109,13 +109,11 @@ import rclpy
 from rclpy.logging import LoggingSeverity
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import FluidPressure, JointState
+from sensor_msgs.msg import FluidPressure
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
-from pam_common.finite_guard import FiniteGuard
-from pam_common.joint_states import JointStates
 from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
@@ -126,12 +124,10 @@ from pam_common.timing import DeadlineSchedule
 from pam_common.topics import (
     CLOCK,
     DEFAULT_NAMESPACE,
-    JOINT_MEASURED,
-    JOINT_STATES,
-    PRESSURES,
     SUPPLY_PRESSURE,
     VALVE_COMMAND,
 )
+from pam_driver.rig_publishers import rig_publishers
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_driver.sim_core import SimCore, SimSample
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
@@ -182,17 +178,11 @@ class SimNode(LinkedNode):
         self._frame_id = config.frame_id
         self._lockstep = config.lockstep
 
-        self._guard = FiniteGuard(self.get_logger())    # non-finite -> the last finite value
-        self._pub_pressures = self._guard.wrap(
-            self.create_publisher(Pressures, PRESSURES, SAMPLE_QOS), hold=True)
-        self._pub_joint = self._guard.wrap(
-            self.create_publisher(JointMeasurement, JOINT_MEASURED, SAMPLE_QOS), hold=True)
-        # joint_measured as JointState, from the message after its guard (pam_common.joint_states)
+        # non-finite -> the last finite value; JointState from joint_measured after its guard
         rate = config.joint_states_rate
-        self._joint_states = JointStates(
-            self._guard.wrap(self.create_publisher(JointState, JOINT_STATES, SAMPLE_QOS))
-            if rate else None, JointState(), config.joint_name, self._frame_id, rate,
-            config.rate)
+        rig = rig_publishers(self, self._frame_id, config.joint_name, rate, config.rate)
+        self._guard, self._pub_pressures, self._pub_joint, self._joint_states = (
+            rig.guard, rig.pressures, rig.joint, rig.joint_states)
         self._pub_clock = (self.create_publisher(Clock, CLOCK, CLOCK_QOS)
                            if config.publish_clock else None)
         self._pub_supply = None
