@@ -283,7 +283,8 @@ def prefer_asynchronous_publication() -> str:
 
 def finite_tool(component: Component) -> bool:
     """A node that ends by itself and says how in finish() (bag_record, bag_play,
-    profile_player, tracking_report): its process keeps FastDDS's synchronous publication. Its
+    profile_player, tracking_report; foxglove_view, whose finish() reports a server that could
+    not start): its process keeps FastDDS's synchronous publication. Its
     last lines (the summary, also on /rosout) are published just before the process ends, and
     an asynchronous writer destroyed at exit had not sent them yet (seen in CI: bag_record's
     summary never reached a /rosout subscriber, its earlier lines did)."""

@@ -70,7 +70,7 @@ class NodeConfig:
     def from_values(cls, values: Mapping[str, Any]):
         """From check_all's (or a node's own check's) values: every field's row, nothing else
         read. ValueError names a missing one (a table and its config that disagree)."""
-        names = [f.name for f in fields(cls)]
+        names = cls.parameter_names()
         missing = [n for n in names if n not in values]
         if missing:
             raise ValueError(f'{cls.__name__}: no value for {", ".join(missing)}')

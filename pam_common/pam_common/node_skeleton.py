@@ -57,8 +57,8 @@ def parameter_values(node, specs: Sequence[ParamSpec],
 
 
 def node_main(node_factory, name: str, usage: str, args=None, stop=None) -> int:
-    """The main() of a node: --help and argument checks (cli_preamble), then run_node(node_factory,
-    ...; `stop(node)` runs at the end with ROS still up). Returns the exit code."""
+    """component_main for a node without a start hook: `stop(node)` runs at the end with ROS
+    still up. Returns the exit code."""
     return component_main(Component(name, node_factory, stop=stop), usage, args)
 
 
