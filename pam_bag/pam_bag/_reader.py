@@ -9,6 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
+from ._columns import header_columns
 from ._storage import BagError, bag_dir, bag_files, check_bag, check_mcap, read_metadata
 from ._types import check_definitions
 from .mcap_check import FileCheck, check_file
@@ -148,6 +151,28 @@ class BagContents:
                                    f'valid {msgtype} ({len(data)} bytes: {exc}); was it '
                                    'recorded with another definition of the type?') from exc
         return out
+
+    def columns(self, topic: str, store, fields) -> dict:
+        """{'stamp_ns': int64 (N,) header stamps, field: float64 (N,) for each of `fields`} of
+        `topic`'s messages (a type with a std_msgs/Header), in receive order (none: empty
+        columns). Decoded all at once when the layout allows it (_columns.header_columns), else
+        message by message (deserialized, BagError as there)."""
+        if topic not in self.topics:
+            return {'stamp_ns': np.zeros(0, np.int64), **{f: np.zeros(0) for f in fields}}
+        index = self.topic_names.index(topic)
+        datas = [d for i, d in zip(self.topic_index, self.data, strict=True) if i == index]
+        fast = header_columns(datas, store, self.topics[topic])
+        if fast is not None:
+            return {'stamp_ns': fast['stamp_ns'],
+                    **{f: fast[f].astype(float) for f in fields}}
+        messages = [msg for _, msg in self.deserialized(topic, store)]
+        return {'stamp_ns': np.array([stamp_of(m.header.stamp) for m in messages], np.int64),
+                **{f: np.array([getattr(m, f) for m in messages], float) for f in fields}}
+
+
+def stamp_of(stamp) -> int:
+    """A builtin_interfaces/Time as integer ns."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 def load_bag(path, topics=None, start_offset: float = 0.0,

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from pam_common import topics as stack_topics
-from pam_common.stamps import ns_pair, stamp_ns
+from pam_common.stamps import ns_pair
 from pam_model.rest import REST_COMMAND
 from pam_model.simulate import SimulationResult
 
@@ -60,11 +60,6 @@ def is_bag(path) -> bool:
     return (path.is_dir() and (path / 'metadata.yaml').is_file()) or path.suffix == '.mcap'
 
 
-def _decode(contents, store, topic):
-    """[(stamp_ns, message)] of one topic, in receive order; BagError if one is unreadable."""
-    return [(stamp_ns(msg.header.stamp), msg) for _, msg in contents.deserialized(topic, store)]
-
-
 def load_bag_run(path, locked: bool | None = None,
                  namespace: str = stack_topics.DEFAULT_NAMESPACE) -> BagRun:
     """The run recorded in a bag (see the module doc); BagError / ValueError if it cannot be."""
@@ -82,39 +77,40 @@ def load_bag_run(path, locked: bool | None = None,
     store = make_typestore()
     check_definitions(bag_files(contents.path), topics + [supply_topic] * has_supply,
                       store)   # only the topics read
-    pressures = _decode(contents, store, topics[0])
-    commands = _decode(contents, store, topics[1])
-    measured = _decode(contents, store, topics[2])
-    if len(pressures) < 2 or not measured:
-        raise BagError(f'{contents.path}: too few samples ({len(pressures)} pressures, '
-                       f'{len(measured)} joint measurements)')
+    pressures = contents.columns(topics[0], store, ('p1', 'p2'))
+    commands = contents.columns(topics[1], store, ('u1', 'u2'))
+    measured = contents.columns(topics[2], store, ('angle', 'angular_velocity', 'torque'))
+    n_pressures, n_commands = len(pressures['stamp_ns']), len(commands['stamp_ns'])
+    if n_pressures < 2 or not len(measured['stamp_ns']):
+        raise BagError(f'{contents.path}: too few samples ({n_pressures} pressures, '
+                       f'{len(measured["stamp_ns"])} joint measurements)')
 
     # samples: unique stamps, first message of each
-    p_stamps = np.array([s for s, _ in pressures], dtype=np.int64)
+    p_stamps = pressures['stamp_ns']
     order = np.argsort(p_stamps, kind='stable')
     stamps, first = np.unique(p_stamps[order], return_index=True)
     keep = order[first]
-    p = np.array([[pressures[j][1].p1, pressures[j][1].p2] for j in keep], dtype=float)
+    p = np.column_stack([pressures['p1'][keep], pressures['p2'][keep]])
 
     # commands in effect: last command with stamp <= sample stamp
     u = np.tile(np.asarray(INITIAL_COMMAND, dtype=float), (len(stamps), 1))
     first_commanded = 0
-    if commands:
-        c_stamps = np.array([s for s, _ in commands], dtype=np.int64)
+    if n_commands:
+        c_stamps = commands['stamp_ns']
         c_order = np.argsort(c_stamps, kind='stable')
         c_sorted = c_stamps[c_order]
-        c_u = np.array([[commands[j][1].u1, commands[j][1].u2] for j in c_order], dtype=float)
+        c_u = np.column_stack([commands['u1'][c_order], commands['u2'][c_order]])
         idx = np.searchsorted(c_sorted, stamps, side='right') - 1
         has = idx >= 0
         u[has] = c_u[idx[has]]
         first_commanded = int(np.argmax(has)) if has.any() else len(stamps)
 
     # joint measurement at each sample's stamp
-    m_stamps = np.array([s for s, _ in measured], dtype=np.int64)
+    m_stamps = measured['stamp_ns']
     m_order = np.argsort(m_stamps, kind='stable')
     m_sorted, m_first = np.unique(m_stamps[m_order], return_index=True)
-    m_vals = np.array([[measured[j][1].angle, measured[j][1].angular_velocity,
-                        measured[j][1].torque] for j in m_order[m_first]], dtype=float)
+    m_vals = np.column_stack([measured[f][m_order[m_first]]
+                              for f in ('angle', 'angular_velocity', 'torque')])
     pos = np.searchsorted(m_sorted, stamps)
     exact = (pos < len(m_sorted)) & (m_sorted[np.minimum(pos, len(m_sorted) - 1)] == stamps)
     rel = (m_sorted - stamps[0]).astype(float)
@@ -129,24 +125,24 @@ def load_bag_run(path, locked: bool | None = None,
         t=t_rel * 1e-9, u=u, x=np.column_stack([angle, truth[:, 1], p]), torque=truth[:, 2],
         force=np.full((n, 2), np.nan), friction=np.zeros(n), subsystem=np.zeros(n, dtype=int),
         p_measured=p.copy(), locked=bool(locked))
-    supply = (_supply_at(_decode(contents, store, supply_topic), stamps) if has_supply
-              else None)
-    return BagRun(run=run, stamps_ns=stamps, commands=len(commands),
-                  measured_missing=int(n - exact.sum()), duplicates=len(pressures) - n,
+    supply = (_supply_at(contents.columns(supply_topic, store, ('fluid_pressure',)), stamps)
+              if has_supply else None)
+    return BagRun(run=run, stamps_ns=stamps, commands=n_commands,
+                  measured_missing=int(n - exact.sum()), duplicates=n_pressures - n,
                   first_commanded=first_commanded, supply=supply)
 
 
-def _supply_at(readings, stamps) -> np.ndarray:
+def _supply_at(readings: dict, stamps) -> np.ndarray:
     """(N,) supply pressure (Pa abs) at each sample stamp: the latest reading at or before it,
-    NaN if none or older than SUPPLY_STALE."""
+    NaN if none or older than SUPPLY_STALE; readings: the topic's columns (stamp_ns,
+    fluid_pressure)."""
     supply = np.full(len(stamps), np.nan)
-    if not readings:
+    if not len(readings['stamp_ns']):
         return supply
-    s_stamps = np.array([s for s, _ in readings], dtype=np.int64)
-    order = np.argsort(s_stamps, kind='stable')
-    values = np.array([readings[j][1].fluid_pressure for j in order], dtype=float)
-    idx = np.searchsorted(s_stamps[order], stamps, side='right') - 1
-    fresh = (idx >= 0) & ((stamps - s_stamps[order][np.maximum(idx, 0)]) * 1e-9 <= SUPPLY_STALE)
+    order = np.argsort(readings['stamp_ns'], kind='stable')
+    s_stamps, values = readings['stamp_ns'][order], readings['fluid_pressure'][order]
+    idx = np.searchsorted(s_stamps, stamps, side='right') - 1
+    fresh = (idx >= 0) & ((stamps - s_stamps[np.maximum(idx, 0)]) * 1e-9 <= SUPPLY_STALE)
     supply[fresh] = values[idx[fresh]]
     return supply
 

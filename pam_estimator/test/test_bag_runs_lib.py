@@ -14,9 +14,9 @@ from pam_estimator.bag_runs import is_bag, load_bag_run, load_run
 REFERENCE = Path(__file__).resolve().parents[2] / 'bags'
 
 
-def _write(path, samples, commands, measured, store):
+def _write(path, samples, commands, measured, store, frame_of=lambda i: 'pam_joint'):
     """samples: [(stamp_ns, p1, p2)], commands: [(stamp_ns, u1, u2)] (in receive order),
-    measured: [(stamp_ns, angle, omega, torque)]."""
+    measured: [(stamp_ns, angle, omega, torque)]; frame_of(i): sample i's frame_id."""
     from rosbags.typesys.stores.ros2_jazzy import (
         builtin_interfaces__msg__Time as Time,
         std_msgs__msg__Header as Header,
@@ -25,16 +25,17 @@ def _write(path, samples, commands, measured, store):
     V = store.types['pam_interfaces/msg/ValveCommand']
     J = store.types['pam_interfaces/msg/JointMeasurement']
 
-    def header(ns):
+    def header(ns, frame_id='pam_joint'):
         sec, nanosec = ns_pair(ns)
-        return Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id='pam_joint')
+        return Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame_id)
     w = bags.BagWriter(path, typestore=store)
     w.add_topic('/pam/pressures', 'pam_interfaces/msg/Pressures', [bags.make_qos()])
     w.add_topic('/pam/valve_command', 'pam_interfaces/msg/ValveCommand', [bags.make_qos()])
     w.add_topic('/pam/joint_measured', 'pam_interfaces/msg/JointMeasurement', [bags.make_qos()])
     events = []
     for i, (s, a, b) in enumerate(samples):
-        events.append((s, 0, i, '/pam/pressures', P(header=header(s), p1=a, p2=b, sample=i + 1)))
+        events.append((s, 0, i, '/pam/pressures', P(header=header(s, frame_of(i)), p1=a, p2=b,
+                                                   sample=i + 1)))
     for i, (s, a, b) in enumerate(commands):
         events.append((s, 1, i, '/pam/valve_command', V(header=header(s), u1=a, u2=b)))
     for i, (s, a, o, t) in enumerate(measured):
@@ -70,6 +71,23 @@ def test_commands_in_effect_measurements_and_mode(store, tmp_path):
     assert (got.commands, got.measured_missing, got.duplicates) == (3, 1, 1)
     assert not run.locked and load_bag_run(tmp_path / 'b', locked=True).run.locked
     assert is_bag(tmp_path / 'b') and is_bag(tmp_path / 'b' / 'b.mcap')
+
+
+def test_a_bag_read_message_by_message_gives_the_same_run(store, tmp_path):
+    """The pressures are decoded as columns at once when every message has the same layout;
+    one message with another frame_id makes them read one by one: the same run either way."""
+    ms = 1_000_000
+    rng = np.random.default_rng(1)
+    samples = [(10**9 + k * ms, *rng.normal(4e5, 1e4, 2)) for k in range(300)]
+    commands = [(10**9 + k * ms, *rng.uniform(0, 10, 2)) for k in range(0, 300, 2)]
+    measured = [(10**9 + k * ms, *rng.normal(0, 1, 3)) for k in range(300)]
+    runs = [load_bag_run(_write(tmp_path / name, samples, commands, measured, store, frame_of))
+            for name, frame_of in (('columns', lambda i: 'pam_joint'),
+                                   ('one_by_one', lambda i: 'other' if i == 7 else 'pam_joint'))]
+    for field in ('t', 'u', 'x', 'torque', 'p_measured'):
+        np.testing.assert_array_equal(getattr(runs[0].run, field), getattr(runs[1].run, field))
+    np.testing.assert_array_equal(runs[0].stamps_ns, runs[1].stamps_ns)
+    assert runs[0].commands == runs[1].commands == 150
 
 
 def test_constant_angle_is_a_locked_joint(store, tmp_path):

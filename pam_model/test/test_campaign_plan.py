@@ -5,6 +5,8 @@ identify at all. A short campaign must show the weak parameters the default one 
 
 import math
 
+import numpy as np
+
 from pam_model.identification.campaign import CampaignPlan, simulate_campaign
 from pam_model.identification.identify import expected_fits, format_plan
 from pam_model.mismatch import load_scenario
@@ -33,3 +35,21 @@ def test_a_short_campaign_names_what_it_cannot_identify_and_how_well_the_rest():
     text = format_plan(ident)
     assert 'expected 1 sigma' in text and 'not identifiable with this campaign' in text
     assert 'k2' in text.split('not identifiable with this campaign')[1]
+
+
+def test_the_campaign_gives_the_same_runs_in_parallel_as_one_after_the_other():
+    """With effects the runs are simulated in worker processes at once: the same samples, in
+    the plan's order, as in one process (each run has its own seed)."""
+    scenario = load_scenario('realistic')
+    model = PamModel(params=scenario.apply(PamModel().params))
+    plan = CampaignPlan(lock_angles=(-15.0, 15.0), hold=2.0, pair_hold=0.0,
+                        voltages=(0.0, 5.0, 10.0), free_duration=18.0, seed=4)
+    one = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects, workers=1)
+    two = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects, workers=2)
+    assert [name for name, _ in two] == [name for name, _ in one] == [
+        'locked_m15deg', 'locked_p15deg', 'free']
+    for (_, a), (_, b) in zip(one, two, strict=True):
+        assert a.locked == b.locked and len(a.t) > 100
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.p_measured, b.p_measured)
+        np.testing.assert_array_equal(a.torque, b.torque)

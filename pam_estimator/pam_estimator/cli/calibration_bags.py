@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -102,25 +103,33 @@ def body(argv=None) -> int:
     if args.plan:
         return print_plan(args, plan)
     model, scenario = build_model(args)
-    # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor
-    runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor; each run's
+    # bag is written where it was simulated (the runs in parallel processes)
+    runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects,
+                             finish=partial(write_bag, out, model.h))
     if args.validation > 0.0:
         profile = validation_profile(args.seed + 1, args.validation, model.h)
         x0 = np.array(REST_STATE)
         for mode, locked in (('free', False), ('locked', True)):
-            runs.append((f'validation_{mode}', simulate(replace(model, locked=locked), profile.u,
-                                                        x0, scenario.sensor, args.seed + 1,
-                                                        effects=scenario.effects)))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for name, run in runs:
-        try:
-            path = write_run_bag(run, out / name)
-        except BagError as exc:
-            raise ValueError(str(exc)) from exc
-        print(f'wrote {path}: {len(run.t)} samples ({len(run.t) * model.h:.1f} s), '
-              f'{"locked" if run.locked else "free"} joint', flush=True)
+            name = f'validation_{mode}'
+            runs.append((name, write_bag(out, model.h, name, simulate(
+                replace(model, locked=locked), profile.u, x0, scenario.sensor, args.seed + 1,
+                effects=scenario.effects))))
+    for _, line in runs:
+        print(line, flush=True)
     return 0
+
+
+def write_bag(out: Path, h: float, name: str, run) -> str:
+    """Writes `run` as the bag OUT/name; the line that says so. ValueError if it cannot."""
+    try:
+        path = write_run_bag(run, out / name)
+    except BagError as exc:
+        raise ValueError(str(exc)) from exc
+    return (f'wrote {path}: {len(run.t)} samples ({len(run.t) * h:.1f} s), '
+            f'{"locked" if run.locked else "free"} joint')
 
 
 def main(argv=None) -> None:

@@ -13,7 +13,7 @@ from pam_model.mismatch import load_scenario
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
-from ..calibration_runs import load_record, write_identification
+from ..calibration_runs import load_records, write_identification
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -68,14 +68,12 @@ def body(argv=None) -> int:
                          'output)')
     prior = load_parameters(args.prior)
     prior_map = load_valve_map(args.prior_valve_map)
-    records = []
-    for path in args.runs:
-        record = load_record(path)
+    records = load_records(args.runs)
+    for path, record in zip(args.runs, records, strict=True):
         print(f'{path}: {len(record.t)} samples ({record.t[-1] - record.t[0]:.1f} s), '
               f'{"locked" if record.locked else "free"} joint'
               + (f' at {math.degrees(record.lock_angle):+.1f} deg' if record.locked else '')
               + ('' if record.has_torque else ', no torque'), flush=True)
-        records.append(record)
     try:
         ident = identify(records, prior, prior_map, partial=args.partial,
                          log=lambda line: print(line, flush=True), extensions=args.extensions)
