@@ -18,14 +18,17 @@ def map_in_processes(function, items, workers: int | None = None, cost=None) -> 
     (default: one per CPU; one worker or one item: in this process). `function` and the items
     must be picklable (a module-level function, a functools.partial of one); an exception in a
     job is raised here. cost(item) orders the jobs, the costliest first, so that the last job to
-    start is a short one. The workers are forked: they inherit the parent's compiled kernels and
-    imports (this is for command-line tools, not for processes with ROS threads)."""
+    start is a short one. The workers come from a fork server (a clean single-threaded process
+    started for the pool): forking the caller itself is unsafe once it has threads (a ROS
+    node's, a test session's), and the workers load the compiled kernels from numba's cache
+    (written at set-up) instead of compiling them."""
     items = list(items)
     workers = min(len(items), workers or cpus())
     if workers < 2:
         return [function(item) for item in items]
     order = sorted(range(len(items)), key=lambda i: -cost(items[i])) if cost else \
         list(range(len(items)))
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('fork')) as pool:
+    context = multiprocessing.get_context('forkserver')
+    with ProcessPoolExecutor(workers, mp_context=context) as pool:
         results = dict(zip(order, pool.map(function, [items[i] for i in order]), strict=True))
     return [results[i] for i in range(len(items))]
