@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pam_common.stamps import NS_PER_S, stamp_ns
+
 #: the scalar types a fast layout may hold after its header, and their numpy types
 SCALARS = {'float64': '<f8', 'uint64': '<u8', 'int64': '<i8'}
 HEADER = 'std_msgs/msg/Header'
@@ -65,15 +67,14 @@ def header_columns(datas: list, store, msgtype: str) -> dict | None:
     if not (rows[:, fixed] == rows[0, fixed]).all():
         return None
     columns = {'stamp_ns': (rows[:, 4:8].copy().view('<i4')[:, 0].astype(np.int64)
-                            * 1_000_000_000
+                            * NS_PER_S
                             + rows[:, 8:12].copy().view('<u4')[:, 0].astype(np.int64))}
     for k, (name, dtype) in enumerate(layout):
         at = start + 8 * k
         columns[name] = rows[:, at:at + 8].copy().view(dtype)[:, 0]
     for j in {0, len(datas) - 1}:   # the typestore's own reading must agree
         msg = store.deserialize_cdr(datas[j], msgtype)
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        if stamp != columns['stamp_ns'][j] or any(
+        if stamp_ns(msg.header.stamp) != columns['stamp_ns'][j] or any(
                 not _same(getattr(msg, name), columns[name][j]) for name, _ in layout):
             return None
     return columns

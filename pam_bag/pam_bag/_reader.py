@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pam_common.stamps import stamp_ns
+
 from ._columns import header_columns
 from ._storage import BagError, bag_dir, bag_files, check_bag, check_mcap, read_metadata
 from ._types import check_definitions
@@ -166,13 +168,8 @@ class BagContents:
             return {'stamp_ns': fast['stamp_ns'],
                     **{f: fast[f].astype(float) for f in fields}}
         messages = [msg for _, msg in self.deserialized(topic, store)]
-        return {'stamp_ns': np.array([stamp_of(m.header.stamp) for m in messages], np.int64),
+        return {'stamp_ns': np.array([stamp_ns(m.header.stamp) for m in messages], np.int64),
                 **{f: np.array([getattr(m, f) for m in messages], float) for f in fields}}
-
-
-def stamp_of(stamp) -> int:
-    """A builtin_interfaces/Time as integer ns."""
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 def load_bag(path, topics=None, start_offset: float = 0.0,

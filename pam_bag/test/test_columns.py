@@ -9,6 +9,7 @@ import pytest
 
 from pam_bag._columns import header_columns, header_scalars
 from pam_bag.bags import make_typestore
+from pam_common.stamps import stamp_ns
 
 pytestmark = pytest.mark.unit
 
@@ -40,7 +41,7 @@ def test_the_columns_are_the_typestores_reading(store, frame_id):
     assert columns is not None
     for j, data in enumerate(datas):
         msg = store.deserialize_cdr(data, PRESSURES)
-        assert columns['stamp_ns'][j] == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert columns['stamp_ns'][j] == stamp_ns(msg.header.stamp)
         assert columns['p1'][j] == msg.p1 or (math.isnan(msg.p1) and np.isnan(columns['p1'][j]))
         assert columns['p2'][j] == msg.p2
         assert int(columns['sample'][j]) == msg.sample
