@@ -13,6 +13,7 @@ import numpy as np
 from pam_bag.bags import BagError
 from pam_model.cli.common import add_model_arguments, build_model, run_cli
 from pam_model.identification.campaign import CampaignPlan, simulate_campaign
+from pam_model.parallel import cpus
 from pam_model.profiles import validation_profile
 from pam_model.rest import REST_STATE
 from pam_model.simulate import simulate
@@ -105,6 +106,9 @@ def body(argv=None) -> int:
     model, scenario = build_model(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    runs = len(plan.lock_angles) + (plan.free_duration > 0.0)
+    print(f'simulating {runs} runs and writing their bags in up to {min(runs, cpus())} '
+          'processes ...', flush=True)
     # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor; each run's
     # bag is written where it was simulated (the runs in parallel processes)
     runs = simulate_campaign(model, scenario.sensor, plan, effects=scenario.effects,
