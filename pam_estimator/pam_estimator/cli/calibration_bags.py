@@ -106,8 +106,8 @@ def body(argv=None) -> int:
     model, scenario = build_model(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    runs = len(plan.lock_angles) + (plan.free_duration > 0.0)
-    print(f'simulating {runs} runs and writing their bags in up to {min(runs, cpus())} '
+    count = len(plan.lock_angles) + (plan.free_duration > 0.0)
+    print(f'simulating {count} runs and writing their bags in up to {min(count, cpus())} '
           'processes ...', flush=True)
     # the scenario's unmodelled effects too (a 'realistic' rig), not only its sensor; each run's
     # bag is written where it was simulated (the runs in parallel processes)
