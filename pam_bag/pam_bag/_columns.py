@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from pam_common.stamps import NS_PER_S, stamp_ns
+from pam_common.stamps import stamp_ns, stamps_ns
 
 #: the scalar types a fast layout may hold after its header, and their numpy types
 SCALARS = {'float64': '<f8', 'uint64': '<u8', 'int64': '<i8'}
 HEADER = 'std_msgs/msg/Header'
 ENCAPSULATION_LE = b'\x00\x01'   # CDR_LE
 PAYLOAD = 4                      # bytes before the payload: the encapsulation header
+SEC_AT, NANOSEC_AT = 4, 8        # the header's stamp, from the start of the message
 LENGTH_AT = 12                   # frame_id's length, from the start of the message
 STRING_AT = 16                   # frame_id's bytes, from the start of the message
 
@@ -66,14 +67,16 @@ def header_columns(datas: list, store, msgtype: str) -> dict | None:
     fixed = np.r_[0:2, LENGTH_AT:STRING_AT + length]   # encapsulation, frame_id
     if not (rows[:, fixed] == rows[0, fixed]).all():
         return None
-    columns = {'stamp_ns': (rows[:, 4:8].copy().view('<i4')[:, 0].astype(np.int64)
-                            * NS_PER_S
-                            + rows[:, 8:12].copy().view('<u4')[:, 0].astype(np.int64))}
+    columns = {'stamp_ns': stamps_ns(rows[:, SEC_AT:SEC_AT + 4].copy().view('<i4')[:, 0],
+                                     rows[:, NANOSEC_AT:NANOSEC_AT + 4].copy().view('<u4')[:, 0])}
     for k, (name, dtype) in enumerate(layout):
         at = start + 8 * k
         columns[name] = rows[:, at:at + 8].copy().view(dtype)[:, 0]
     for j in {0, len(datas) - 1}:   # the typestore's own reading must agree
-        msg = store.deserialize_cdr(datas[j], msgtype)
+        try:
+            msg = store.deserialize_cdr(datas[j], msgtype)
+        except Exception:   # noqa: BLE001 - unreadable: the caller's reading names it
+            return None
         if stamp_ns(msg.header.stamp) != columns['stamp_ns'][j] or any(
                 not _same(getattr(msg, name), columns[name][j]) for name, _ in layout):
             return None

@@ -16,6 +16,13 @@ def stamp_ns(stamp) -> int:
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
+def stamps_ns(sec, nanosec):
+    """stamp_ns over arrays: numpy integer arrays of the sec and nanosec fields of many stamps
+    (e.g. a bag's columns) as an int64 array of ns since the epoch (no numpy import here: the
+    arrays carry it)."""
+    return sec.astype('int64') * NS_PER_S + nanosec.astype('int64')
+
+
 def ns_pair(ns) -> tuple[int, int]:
     """ns (an int, or a float: truncated to whole ns) as (sec, nanosec), 0 <= nanosec < 1e9:
     the fields of a builtin_interfaces/Time or Duration."""
