@@ -342,7 +342,8 @@ def run_nodes(components: Sequence[Component], name: str, args=None,
     `on_started(nodes)`. The process-wide
     knobs are set here, for whichever nodes the process holds: FastDDS's publication mode
     (prefer_asynchronous_publication, unless a node is a finite_tool), the thread switch
-    interval (shorten_switch_interval), the frozen heap (freeze_heap)."""
+    interval (shorten_switch_interval), the frozen heap (freeze_heap, once every node is built
+    and before any starts)."""
     from .node_params import ConfigError
     from .params_files import report_ros_args_problem
     code = report_ros_args_problem(sys.argv if args is None else args, name)
@@ -378,12 +379,14 @@ def run_nodes(components: Sequence[Component], name: str, args=None,
             executor = make_executor(events=not sim_time)
             for node in nodes:
                 executor.add_node(node)
+            # before any node starts: the full collection takes tens of ms, which a started
+            # sampling thread (sim_node's) would spend stalled behind the GIL
+            freeze_heap()
             for component, node in built:
                 if component.start is not None:
                     component.start(node)
             if on_started is not None:
                 on_started(nodes)
-            freeze_heap()
             spin(executor, stop_signals, until=finished)
         except ConfigError as exc:
             print(f'[{name}] error: {exc}', file=sys.stderr)

@@ -49,8 +49,8 @@ def measure_timer_floor(rate: float = DEFAULT_RATE, duration: float = DEFAULT_DU
                         priority: int | None = None) -> TimerFloor:
     """Sleep to `duration` s of deadlines at `rate` Hz in a thread of its own (SCHED_FIFO
     `priority` if given and granted) and count how late each wake-up was; a deadline already
-    past is taken at once (caught up, as sim_node does), so a stall counts every period it
-    covered."""
+    past is taken at once (as sim_node takes every passed deadline), so a stall counts every
+    period it covered."""
     if not (rate > 0.0 and duration > 0.0):
         raise ValueError(f'rate and duration must be > 0, got {rate!r} Hz, {duration!r} s')
     period, count = 1.0 / rate, max(1, round(duration * rate))

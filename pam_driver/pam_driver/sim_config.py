@@ -108,13 +108,15 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'command for step k arrives.', choices=TIMINGS),
     ParamSpec('rate', 1000.0, 'double', 'Hz',
               'Sample rate; the model step is h = 1/rate.', range=RATE_RANGE),
-    ParamSpec('max_catch_up', 10, 'integer', 'periods',
+    ParamSpec('max_catch_up', 20, 'integer', 'periods',
               'Realtime only: the simulated rig never pauses; when its sampling thread wakes up '
-              'late, up to this many overdue samples are taken and published back to back '
-              '(late samples); after a longer stall the plant steps through all of them with '
-              'the held command without publishing them (missed samples: a gap in the sample '
-              'counter) and publishes the newest. Either way the run was not real time, and '
-              'the rig says so on /diagnostics.',
+              'late, the plant has stepped through every passed deadline with the held command '
+              'and up to this many overdue samples wait and are published in order, late (a '
+              "board's samples waiting in the serial line for a late driver); after a longer "
+              'stall the oldest are dropped (missed samples: a gap in the sample counter). '
+              'Either way the run was not real time, and the rig says so on /diagnostics. The '
+              "default is the longest stall a valid run may have (pam_common.run_health's "
+              'max_worst_stall, 20 ms) at 1 kHz.',
               range=CATCH_UP_RANGE),
     ParamSpec('publish_supply_pressure', False, 'bool', '',
               "Publish supply_pressure (sensor_msgs/FluidPressure, Pa abs): the plant's supply "
@@ -327,8 +329,8 @@ def describe(config: SimConfig) -> list[str]:
     timing = (f"timing: {v['timing']} at {v['rate']:g} Hz (model step h = {1e3 / v['rate']:g} ms)"
               + ('; /clock published' if v['publish_clock'] else ''))
     if v['timing'] == 'realtime':
-        timing += (f"; the plant never pauses: up to {v['max_catch_up']} overdue samples are "
-                   'caught up, a longer backlog stepped through unpublished (missed)')
+        timing += (f"; the plant never pauses: up to {v['max_catch_up']} overdue samples wait "
+                   'and are published late, older ones are dropped (missed)')
     if v['timing'] == 'lockstep':
         timing += (f"; re-publish after {v['lockstep_timeout']:g} s without a command"
                    if v['lockstep_timeout'] > 0 else '; never re-publish')

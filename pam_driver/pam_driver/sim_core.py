@@ -15,12 +15,13 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from typing import NamedTuple
 
 from pam_common.latency import CommandTiming
 from pam_common.levels import ERROR, OK, WARN
 from pam_common.run_health import LATE_SAMPLES, MISSED_SAMPLES, SAMPLES_TAKEN, WORST_STALL_MS
-from pam_common.timing import RateStatistics
+from pam_common.timing import DeadlineSchedule, RateStatistics
 
 from .sim_config import SimConfig
 from .supply_sensor import SupplySensor
@@ -113,16 +114,20 @@ class SimCore:
             self.current = self._sample(self.stamp(0))
             return self.current
 
-    def realtime_sample(self, missed: int, t_ns: int) -> SimSample | None:
-        """Realtime, at a deadline: the plant steps through `missed` overdue samples (held
-        command, unpublished) and once more to this deadline's sample, stamped t_ns; the first
-        deadline is sample 0 (no step before it)."""
+    def realtime_samples(self, skipped: int, stamps_ns) -> list[SimSample | None]:
+        """Realtime, deadlines that have passed: the plant steps through `skipped` of them
+        unsampled (missed), then takes the sample of each deadline stamped in stamps_ns (ns), in
+        order; one model step before each, all with the command held now; the first deadline
+        ever is sample 0 (no step before it)."""
         with self.lock:
-            for _ in range(missed + 1):
+            samples = []
+            for i in range(skipped + len(stamps_ns)):
                 if self._stepped:
                     self.rig.step()
                 self._stepped = True
-            return self._sample(t_ns)
+                if i >= skipped:
+                    samples.append(self._sample(stamps_ns[i - skipped]))
+            return samples
 
     def published(self) -> None:
         """A sample left (counted for /diagnostics)."""
@@ -244,3 +249,67 @@ class SimCore:
         else:
             message = f'realtime: {window.achieved_rate:.1f} Hz'
         return level, message, values
+
+
+class RealtimeSampler:
+    """Realtime: when the rig takes its samples and which it publishes, without ROS or threads.
+
+    The plant follows the wall clock: every deadline start + n * period that has passed is a
+    sample taken, one model step after the previous one with the command held at that moment,
+    whether or not the loop had time for it (a late controller finds the valves holding its last
+    command). The samples taken and not yet published wait in a backlog and leave oldest first,
+    late, as a DAQ board's samples wait in the serial line for a late driver: the loop sees every
+    sample, as it was, after the stall. At most `backlog` + 1 wait (this deadline's and `backlog`
+    overdue ones): after a longer stall the oldest are dropped (missed samples: a gap in the
+    sample counter; a dropped sample that was never taken is only a model step). Sample n is
+    stamped start_ns + n * period (ns, the node clock). Times in s on one monotonic clock."""
+
+    def __init__(self, core: SimCore, period: float, start: float, start_ns: int, backlog: int):
+        self.core = core
+        self.schedule = DeadlineSchedule(period, start, max_catch_up=None)  # never skips
+        self.period_ns = period * 1e9
+        self.start_ns = start_ns
+        self.limit = backlog + 1
+        self.waiting: deque[tuple[float, SimSample | None]] = deque()  # (deadline s, sample)
+        self._n = 0               # the index of the next deadline to take
+        self._missed = 0          # dropped since the last sample handed out
+        self._dropped_lateness = 0.0   # s, the oldest of those: the stall they were in
+
+    def wait(self, now: float) -> float:
+        """s to sleep before the next sample is due (0: one is waiting or due now)."""
+        return 0.0 if self.waiting else max(self.schedule.deadline - now, 0.0)
+
+    def next(self, now: float) -> tuple[SimSample | None, float, int] | None:
+        """The next sample to publish at `now` (None: not finite, suppressed), its lateness (s
+        after its deadline, or the lateness of the oldest sample dropped since the last one if
+        that is more: the stall) and the samples missed since the last one; None if none is
+        due."""
+        schedule = self.schedule
+        due = schedule.overdue(now) + 1 if schedule.deadline <= now else 0
+        if due:
+            taken = min(due, self.limit)
+            dropped = max(len(self.waiting) + taken - self.limit, 0)
+            if dropped:                                   # the oldest waiting ones
+                self._dropped_lateness = max(self._dropped_lateness, now - self.waiting[0][0])
+            for _ in range(dropped):
+                self.waiting.popleft()
+            skipped = due - taken
+            if skipped and not dropped:
+                self._dropped_lateness = max(self._dropped_lateness, now - schedule.deadline)
+            self._missed += dropped + skipped
+            first = self._n + skipped
+            deadlines = [schedule.deadline + (skipped + i) * schedule.period
+                         for i in range(taken)]
+            samples = self.core.realtime_samples(
+                skipped, [self.start_ns + round((first + i) * self.period_ns)
+                          for i in range(taken)])
+            self.waiting.extend(zip(deadlines, samples, strict=True))
+            self._n += due
+            for _ in range(due):
+                schedule.advance(now)
+        if not self.waiting:
+            return None
+        deadline, sample = self.waiting.popleft()
+        missed, self._missed = self._missed, 0
+        lateness, self._dropped_lateness = max(now - deadline, self._dropped_lateness), 0.0
+        return sample, lateness, missed

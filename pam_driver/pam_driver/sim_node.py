@@ -42,12 +42,14 @@ with the deadline's time on the node clock (system time; this node never runs on
 time): sample k is stamped start + k/rate, whenever it left. The simulated rig behaves like a
 rig: its plant follows the wall clock and NEVER PAUSES. A controller that answers late finds the
 valves holding its last command (zero-order hold) while the joint moves on. If the sampling
-thread itself wakes up late (the machine is overloaded), up to max_catch_up overdue samples are
-CAUGHT UP back to back, each one model step h after the previous one with the command held at
-that moment; after a longer stall the plant steps through every overdue sample without
-publishing it (*missed samples*, a gap in the sample counter) and publishes the newest, so the
-plant's time stays on the wall clock and an overloaded process is not handed a backlog.
-Caught-up and missed samples are *late samples*
+thread itself wakes up late (the machine is overloaded), the plant has stepped through every
+deadline that passed, each one model step h after the previous one with the command held then,
+and those samples wait in a backlog and are published in order, late, as a DAQ board's samples
+wait in the serial line for a late driver (pam_driver.sim_core.RealtimeSampler): the loop sees
+every sample as it was. At most max_catch_up overdue samples wait; after a longer stall the
+oldest are dropped unpublished (*missed samples*, a gap in the sample counter), so the plant's
+time stays on the wall clock and an overloaded process is not handed a backlog it cannot take.
+Samples published from the backlog and missed samples are *late samples*
 (published more than one period after their deadline, or never), and the longest lateness is
 the *worst stall*. A run with late
 samples was not real time: the rig reports it (/diagnostics) and tracking_report / pam-demo mark
@@ -120,7 +122,6 @@ from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
 from pam_common.stamps import ns_stamp, stamp_ns
 from pam_common.throttled_log import ThrottledLogs
-from pam_common.timing import DeadlineSchedule
 from pam_common.topics import (
     CLOCK,
     DEFAULT_NAMESPACE,
@@ -129,7 +130,7 @@ from pam_common.topics import (
 )
 from pam_driver.rig_publishers import rig_publishers
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
-from pam_driver.sim_core import SimCore, SimSample
+from pam_driver.sim_core import RealtimeSampler, SimCore, SimSample
 from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
 
@@ -287,32 +288,23 @@ class SimNode(LinkedNode):
 
     def _realtime_loop(self) -> None:
         self._realtime.apply_to_thread('sim_node_sampler')
-        period = 1.0 / self.config.rate
         start = time.monotonic()
         start_ns = self.get_clock().now().nanoseconds   # deadline 0 on the node clock
-        schedule = DeadlineSchedule(period, start, max_catch_up=None)   # the plant never pauses
-        burst = self.config.max_catch_up
         core = self.core
+        sampler = RealtimeSampler(core, 1.0 / self.config.rate, start, start_ns,
+                                  self.config.max_catch_up)
         core.stats.restart(start)
         try:
             while not self._stop.is_set():
-                delay = schedule.deadline - time.monotonic()
+                delay = sampler.wait(time.monotonic())
                 if delay > 0.0:
                     time.sleep(delay)
-                now = time.monotonic()
-                # more than `burst` samples overdue: the plant steps through all of them with
-                # the held command, unpublished (missed), and publishes the newest only, so that
-                # an overloaded process is not handed a backlog it cannot take
-                overdue = schedule.overdue(now)
-                missed = overdue if overdue > burst else 0
-                lateness = schedule.lateness(now)     # of the oldest sample due: the stall
-                for _ in range(missed):
-                    schedule.advance(now)
-                sample = core.realtime_sample(missed, start_ns + round((schedule.deadline - start)
-                                                                       * 1e9))
+                taken = sampler.next(time.monotonic())
+                if taken is None:
+                    continue
+                sample, lateness, missed = taken
                 self._publish(self._messages(sample))
                 core.stats.record(lateness, missed)
-                schedule.advance(now)
         except Exception as exc:  # noqa: BLE001 - report, do not die silently
             if self._stop.is_set() or not rclpy.ok(context=self.context):
                 return  # shutting down: the publishers went away under us

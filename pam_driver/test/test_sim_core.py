@@ -9,7 +9,7 @@ import pytest
 from pam_common.diagnostics import ERROR, OK, WARN
 from pam_common.run_health import LATE_SAMPLES, MISSED_SAMPLES, SAMPLES_TAKEN
 from pam_driver.sim_config import build_config
-from pam_driver.sim_core import SimCore
+from pam_driver.sim_core import RealtimeSampler, SimCore
 
 H_NS = 1_000_000      # ns, the model step at the default 1 kHz
 
@@ -69,9 +69,9 @@ def test_the_same_seed_and_commands_give_the_same_samples():
 
 def test_realtime_never_pauses_it_steps_through_missed_samples():
     core = SimCore(build_config({}), start=0.0)
-    first = core.realtime_sample(0, 0)
+    [first] = core.realtime_samples(0, [0])
     assert (first.counter, core.rig.k) == (1, 0)     # the first deadline: sample 0, no step
-    after = core.realtime_sample(3, 4 * H_NS)        # 3 missed, then this deadline's
+    [after] = core.realtime_samples(3, [4 * H_NS])   # 3 missed, then this deadline's
     assert (after.counter, after.t_ns, core.rig.k) == (5, 4 * H_NS, 4)
     core.stats.record(0.0)
     core.stats.record(3.5e-3, 3)                     # the stall: 3 samples missed
@@ -82,14 +82,57 @@ def test_realtime_never_pauses_it_steps_through_missed_samples():
 
 def test_realtime_commands_are_held_and_timed():
     core = SimCore(build_config({}), start=0.0)
-    core.realtime_sample(0, 0)
+    core.realtime_samples(0, [0])
     out = core.on_command(8.0, 3.0, 0, 1_000_000)
     assert out.applied == (8.0, 3.0) and out.sample is None
-    core.realtime_sample(0, H_NS)
-    core.realtime_sample(0, 2 * H_NS)
+    core.realtime_samples(0, [H_NS, 2 * H_NS])
     assert core.rig.u == (8.0, 3.0) and core.rig.k == 2   # held over both steps
 
 
+def sampler(backlog=20, start=0.0, start_ns=7_000_000_000):
+    core = SimCore(build_config({}), start=start)
+    return core, RealtimeSampler(core, 1e-3, start, start_ns, backlog)
+
+
+def test_the_sampler_takes_one_sample_per_deadline_on_time():
+    core, s = sampler()
+    assert s.wait(-0.5e-3) == pytest.approx(0.5e-3)    # before the first deadline
+    assert s.next(-0.5e-3) is None
+    for n in range(5):
+        sample, lateness, missed = s.next(n * 1e-3 + 1e-4)
+        assert (sample.counter, sample.t_ns, missed) == (n + 1, 7_000_000_000 + n * H_NS, 0)
+        assert lateness == pytest.approx(1e-4)
+        assert s.next(n * 1e-3 + 2e-4) is None           # the next deadline is not due yet
+    assert core.rig.k == 4
+
+
+def test_after_a_stall_the_plant_has_moved_on_with_the_held_command_and_the_loop_sees_each_sample():
+    """A stall of 4.5 periods after sample 0: the plant stepped through the 5 passed deadlines
+    at once with the command held during the stall; the 5 samples leave in order, late, each
+    stamped with its deadline; a command applied while they leave does not reach the steps
+    already taken."""
+    core, s = sampler()
+    s.next(0.0)
+    core.on_command(8.0, 3.0, 0, 0)
+    held = core.rig.x.copy()
+    out = [s.next(5.5e-3)]
+    assert core.rig.k == 5                               # every passed deadline stepped at once
+    core.on_command(0.0, 10.0, 0, 0)                     # the answer to the oldest, late
+    out += [s.next(5.6e-3) for _ in range(3)]
+    assert s.wait(5.7e-3) == 0.0                         # one still waiting: no sleep
+    out.append(s.next(5.7e-3))
+    assert s.next(5.8e-3) is None and s.wait(5.8e-3) == pytest.approx(0.2e-3)
+    assert [o[0].counter for o in out] == [2, 3, 4, 5, 6]
+    assert [o[0].t_ns - 7_000_000_000 for o in out] == [n * H_NS for n in range(1, 6)]
+    assert [o[2] for o in out] == [0] * 5
+    assert [o[1] for o in out] == pytest.approx([4.5e-3, 3.6e-3, 2.6e-3, 1.6e-3, 0.7e-3])
+    # the plant: 5 steps with (8, 3) V from the held state, none with the late (0, 10) V
+    reference = SimCore(build_config({}), start=0.0)
+    reference.rig.x = held
+    reference.rig.set_command(8.0, 3.0)
+    for _ in range(5):
+        reference.rig.step()
+    assert (core.rig.x == reference.rig.x).all()
 @pytest.mark.parametrize('fault, nonfinite, level', [('sampling thread stopped: X', 0, ERROR),
                                                      ('', 1, ERROR)])
 def test_a_failed_sampler_or_a_suppressed_sample_is_an_error(fault, nonfinite, level):
@@ -104,3 +147,23 @@ def test_a_non_finite_state_is_suppressed_and_counted():
     core.rig.x[:] = math.nan
     assert core.first_lockstep_sample() is None
     assert core.nonfinite_samples == 1 and all(math.isnan(v) for v in core.nonfinite_state)
+
+
+def test_a_stall_longer_than_the_backlog_drops_the_oldest_samples():
+    """backlog 3 and a stall of 10 periods after sample 0: 4 samples wait (this deadline's and 3
+    overdue), the 6 older ones are missed (stepped, never taken), counted with the first sample
+    that leaves; a later stall while one still waits drops the oldest waiting one."""
+    core, s = sampler(backlog=3)
+    s.next(0.0)
+    sample, lateness, missed = s.next(10.2e-3)
+    assert (sample.counter, missed, core.rig.k) == (8, 6, 10)
+    assert lateness == pytest.approx(9.2e-3)       # the stall: the oldest missed one's
+    assert [s.next(10.3e-3)[0].counter for _ in range(2)] == [9, 10]   # 11 (10 ms) waits
+    sample, lateness, missed = s.next(14.1e-3)    # 4 more due: 5 would wait, the oldest goes
+    assert (sample.counter, missed, core.rig.k) == (12, 1, 14)
+    assert lateness == pytest.approx(4.1e-3)       # counter 11's deadline was 10 ms
+    assert s.next(14.2e-3)[1] == pytest.approx(2.2e-3)   # 13: its own lateness again
+    sample, lateness, missed = s.next(16.1e-3)    # 2 more due: 4 wait, none goes
+    assert (sample.counter, missed, core.rig.k) == (14, 0, 16)
+    assert [s.next(16.2e-3)[0].counter for _ in range(3)] == [15, 16, 17]
+    assert s.next(16.2e-3) is None
