@@ -27,8 +27,6 @@ on that machine (its hypervisor), so a 1 % limit would judge the machine, not th
 - max_missed_fraction 0.001: the fraction of the rig's samples never published ('missed
   samples': after a stall longer than sim_node's max_catch_up the oldest of the samples taken
   meanwhile are dropped and the loop never sees them): each is a hole in the estimator's input.
-  sim_node's default max_catch_up is max_worst_stall at 1 kHz, so it misses samples only in a
-  stall that is already too long; the limit still judges a rig set otherwise.
 - max_worst_stall 0.020 s: the longest lateness of the rig's sampling ('worst stall (ms)'). At
   1 kHz a stall of 20 ms is 20 samples held at the old command, a fifth of the valves' own time
   constant and less than half the driver's command watchdog (50 ms, which vents a real rig):

@@ -108,15 +108,15 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'command for step k arrives.', choices=TIMINGS),
     ParamSpec('rate', 1000.0, 'double', 'Hz',
               'Sample rate; the model step is h = 1/rate.', range=RATE_RANGE),
-    ParamSpec('max_catch_up', 20, 'integer', 'periods',
+    ParamSpec('max_catch_up', 10, 'integer', 'periods',
               'Realtime only: the simulated rig never pauses; when its sampling thread wakes up '
               'late, the plant has stepped through every passed deadline with the held command '
               'and up to this many overdue samples wait and are published in order, late (a '
               "board's samples waiting in the serial line for a late driver); after a longer "
               'stall the oldest are dropped (missed samples: a gap in the sample counter). '
-              'Either way the run was not real time, and the rig says so on /diagnostics. The '
-              "default is the longest stall a valid run may have (pam_common.run_health's "
-              'max_worst_stall, 20 ms) at 1 kHz.',
+              'Either way the run was not real time, and the rig says so on /diagnostics. A '
+              'longer backlog is more work for a process that is already late '
+              '(docs/realtime.md).',
               range=CATCH_UP_RANGE),
     ParamSpec('publish_supply_pressure', False, 'bool', '',
               "Publish supply_pressure (sensor_msgs/FluidPressure, Pa abs): the plant's supply "
