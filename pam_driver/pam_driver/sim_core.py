@@ -21,7 +21,7 @@ from typing import NamedTuple
 from pam_common.latency import CommandTiming
 from pam_common.levels import ERROR, OK, WARN
 from pam_common.run_health import LATE_SAMPLES, MISSED_SAMPLES, SAMPLES_TAKEN, WORST_STALL_MS
-from pam_common.timing import DeadlineSchedule, RateStatistics
+from pam_common.timing import RateStatistics
 
 from .sim_config import SimConfig
 from .supply_sensor import SupplySensor
@@ -266,7 +266,7 @@ class RealtimeSampler:
 
     def __init__(self, core: SimCore, period: float, start: float, start_ns: int, backlog: int):
         self.core = core
-        self.schedule = DeadlineSchedule(period, start, max_catch_up=None)  # never skips
+        self.period, self.start = period, start
         self.period_ns = period * 1e9
         self.start_ns = start_ns
         self.limit = backlog + 1
@@ -277,15 +277,19 @@ class RealtimeSampler:
 
     def wait(self, now: float) -> float:
         """s to sleep before the next sample is due (0: one is waiting or due now)."""
-        return 0.0 if self.waiting else max(self.schedule.deadline - now, 0.0)
+        return 0.0 if self.waiting else max(self._deadline(self._n) - now, 0.0)
+
+    def _deadline(self, n: int) -> float:
+        """s, deadline n on the monotonic clock."""
+        return self.start + n * self.period
 
     def next(self, now: float) -> tuple[SimSample | None, float, int] | None:
         """The next sample to publish at `now` (None: not finite, suppressed), its lateness (s
         after its deadline, or the lateness of the oldest sample dropped since the last one if
         that is more: the stall) and the samples missed since the last one; None if none is
         due."""
-        schedule = self.schedule
-        due = schedule.overdue(now) + 1 if schedule.deadline <= now else 0
+        deadline = self._deadline(self._n)
+        due = int((now - deadline) // self.period) + 1 if deadline <= now else 0
         if due:
             taken = min(due, self.limit)
             dropped = max(len(self.waiting) + taken - self.limit, 0)
@@ -295,18 +299,15 @@ class RealtimeSampler:
                 self.waiting.popleft()
             skipped = due - taken
             if skipped and not dropped:
-                self._dropped_lateness = max(self._dropped_lateness, now - schedule.deadline)
+                self._dropped_lateness = max(self._dropped_lateness, now - deadline)
             self._missed += dropped + skipped
             first = self._n + skipped
-            deadlines = [schedule.deadline + (skipped + i) * schedule.period
-                         for i in range(taken)]
+            deadlines = [self._deadline(first + i) for i in range(taken)]
             samples = self.core.realtime_samples(
                 skipped, [self.start_ns + round((first + i) * self.period_ns)
                           for i in range(taken)])
             self.waiting.extend(zip(deadlines, samples, strict=True))
             self._n += due
-            for _ in range(due):
-                schedule.advance(now)
         if not self.waiting:
             return None
         deadline, sample = self.waiting.popleft()
