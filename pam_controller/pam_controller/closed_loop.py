@@ -176,7 +176,7 @@ def simulate_closed_loop_with_effects(plant: PamModel, effects: Effects, estimat
     reads its sensed pressures, the truth includes its hysteresis forces). With no effect on it
     gives simulate_closed_loop's run sample for sample. extensions: the estimator model's
     (pam_model.model_extensions); when any is on, the estimate comes from a PamUkf carrying them
-    (its step in Python around two kernels) and the PI from the same pi_step."""
+    (its step one compiled call, ukf_step_with_effects) and the PI from the same pi_step."""
     reference, noise = _checked_inputs(plant, mode, reference, sensor, seed)
     kp, ki = (float(g) for g in gains)
     h = plant.h

@@ -16,8 +16,9 @@ Biases are random walks: b(k) = b(k-1) + w, w ~ N(0, q h) with q the BiasStates'
 sigma points (n = 7, kappa = 0), each advanced by step_with_effects with its own b_tau (the biases
 carried unchanged), prior + Q, sigma points redrawn, update with g(x) = [P1 + b1, P2 + b2],
 outputs at the posterior (torque + b_tau). A locked joint holds psi and psi_dot as the paper's
-filter does. The valve lag, hysteresis memory, sensor gain/offset correction and supply handling
-are PamUkf's own. Here: the options and the torque-to-forces map.
+filter does. The valve lag, hysteresis memory and sensor gain/offset correction are
+ukf_step_with_effects' own, the supply handling PamUkf's. Here: the options and the
+torque-to-forces map.
 """
 
 from __future__ import annotations

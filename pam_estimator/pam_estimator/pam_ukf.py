@@ -13,10 +13,11 @@ input u(k-1) = the valve voltages (V) held over the step just ended. One step:
    the posterior sigma points, and the subsystem index sigma.
 A Cholesky factorisation that fails falls back to an eigenvalue clip (counted). Locked joint: the
 angle is held at the lock angle with a tiny variance, psi_dot = 0.
-The whole step is one compiled numba kernel (see the README for why). With model extensions or
-a measured supply pressure (docs/model_extensions.md) it is two kernels around the valve lag and
-the hysteresis memory (numpy, per sample); without, ukf_step as it always was. The option
-bias_states (bias_ukf.py) takes the two kernels with a 7-state x (sensor offsets, torque bias).
+The whole step is one compiled numba kernel (see the README for why): ukf_step for the paper's
+model; with model extensions or a measured supply pressure (docs/model_extensions.md)
+ukf_step_with_effects, which also holds the valve lag and the hysteresis memory (their states are
+arrays the kernel updates in place). The option bias_states (bias_ukf.py) takes the same kernel
+with a 7-state x (sensor offsets, torque bias).
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from pam_model.effects import Effects, MaxwellSlip, ValveLag
-from pam_model.effects_physics import step_with_effects
+from pam_model.effects import HYSTERESIS_PRESSURE, Effects, MaxwellSlip, lag_factor
+from pam_model.effects_physics import maxwell_slip_update, step_with_effects
 from pam_model.model import PamModel
 from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import (
@@ -41,7 +42,7 @@ from pam_model.physics import (
     valve_opening,
 )
 from pam_model.rest import REST_STATE
-from pam_model.valve_voltage import sanitise_command
+from pam_model.valve_voltage import U_MAX, U_MIN
 
 from .bias_ukf import N_BIASED, BiasStates, torque_forces
 from .unscented import (
@@ -247,6 +248,70 @@ def predict_correct_with_effects(x, P, alpha1, alpha2, y, Q, R, h, p_array, fric
     return x_post, P_post, F1, F2
 
 
+class EstimatorEffects(NamedTuple):
+    """The estimator's extensions as ukf_step_with_effects takes them, in one record: the valve
+    lag's per-step decay e^(-h/tau) and mean weight (-; 0, 0: no lag), sensor offset o (2,) Pa
+    and gain 1 + g (2,) (-), dead volume V_d (m^3), and the Maxwell-slip elements' slip forces
+    (n,) N at 500 kPa and stiffnesses (n,) N/N (n = 0: no hysteresis) with P_out (Pa abs)."""
+
+    valve_decay: float
+    valve_mean_weight: float
+    sensor_offset: np.ndarray
+    sensor_gain: np.ndarray
+    dead_volume: float
+    slip: np.ndarray
+    stiffness: np.ndarray
+    p_out: float
+
+
+@njit(cache=True)
+def sanitised_voltage(u):
+    """u (V) as a valve reads it: non-finite as U_MIN, clipped to [U_MIN, U_MAX]."""
+    if not np.isfinite(u):
+        return U_MIN
+    return min(max(u, U_MIN), U_MAX)
+
+
+@njit(cache=True)
+def ukf_step_with_effects(x, P, u_prev, y, model, settings, effects, valve, anchor, F_h, info):
+    """One predict + update with the estimator's extensions, in place, as ukf_step: u_prev (2,)
+    V sanitised and lagged through the valve state valve (3,) = [started, u_f1, u_f2] (V; the
+    first command starts the lag at itself); a raw reading y (2,) Pa outside [y_min, y_max]
+    (or non-finite) means no update, else it is corrected to (y - o) / (1 + g); the hysteresis
+    memory anchor (2, n) N moves with the finite posterior's eq. (6) forces, and F_h (2,) N
+    (held over the next step) takes the new forces when the posterior is finite. model: a
+    KernelModel (P_tank of the step in its p_array); settings: a FilterSettings; effects: an
+    EstimatorEffects; info (10,) receives INFO_FIELDS."""
+    u1, u2 = sanitised_voltage(u_prev[0]), sanitised_voltage(u_prev[1])
+    if valve[0] == 0.0:
+        valve[0], valve[1], valve[2] = 1.0, u1, u2
+    f1, f2 = valve[1], valve[2]
+    mean1 = u1 + (f1 - u1) * effects.valve_mean_weight
+    mean2 = u2 + (f2 - u2) * effects.valve_mean_weight
+    valve[1] = u1 + (f1 - u1) * effects.valve_decay
+    valve[2] = u2 + (f2 - u2) * effects.valve_decay
+    alpha1 = valve_opening(mean1, model.kappa_u, model.kappa_alpha)
+    alpha2 = valve_opening(mean2, model.kappa_u, model.kappa_alpha)
+    y_corrected = np.full(2, np.nan)             # a faulty raw reading: no update
+    if (settings.y_min <= y[0] <= settings.y_max
+            and settings.y_min <= y[1] <= settings.y_max):      # False for NaN
+        for i in range(2):
+            y_corrected[i] = (y[i] - effects.sensor_offset[i]) / effects.sensor_gain[i]
+    x_post, P_post, F1, F2 = predict_correct_with_effects(
+        x, P, alpha1, alpha2, y_corrected, settings.Q, settings.R, model.h, model.p_array,
+        model.friction_law, model.force_model, model.locked, settings.lock_angle,
+        settings.nis_gate, info, effects.dead_volume, F_h[0], F_h[1])
+    F_h_next = F_h.copy()
+    if effects.slip.size > 0 and np.all(np.isfinite(x_post)):
+        s = np.array((F1, F2))
+        maxwell_slip_update(s, x_post[2:4], effects.slip, effects.stiffness, effects.p_out,
+                            HYSTERESIS_PRESSURE, anchor, F_h_next)
+    estimate_outputs(x, P, x_post, P_post, model.h, model.p_array, model.friction_law,
+                     model.force_model, model.locked, F_h_next[0], F_h_next[1], info)
+    if info[INFO_FINITE]:
+        F_h[:] = F_h_next
+
+
 class UkfTuning(NamedTuple):
     """Diagonals of Q (process), R (measurement) and P(0), in the state's SI units squared."""
 
@@ -330,10 +395,23 @@ class PamUkf:
             raise ValueError(f'extensions: {", ".join(refused)} not allowed in an estimator '
                              f'(allowed: {", ".join(ESTIMATOR_FIELDS)})')
         e = self.extensions
-        self._sensor_gain = 1.0 + np.asarray(e.sensor_gain_error)
-        self._sensor_offset = np.asarray(e.sensor_offset)
         self._record = self.model.params_array.copy()    # P_tank of a step written here
         self._kernel_model = self.model.kernel_model()
+        self._effects_model = self.model.kernel_model(self._record)
+        hysteresis = (MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
+                                  e.hysteresis_travel, self.model.params.P_out)
+                      if e.hysteresis_band > 0.0 else None)
+        decay = lag_factor(self.model.h, e.valve_time_constant)
+        self._effects = EstimatorEffects(
+            valve_decay=decay,
+            valve_mean_weight=(e.valve_time_constant / self.model.h * (1.0 - decay)
+                               if e.valve_time_constant > 0.0 else 0.0),
+            sensor_offset=np.array(e.sensor_offset, dtype=float),
+            sensor_gain=1.0 + np.array(e.sensor_gain_error, dtype=float),
+            dead_volume=float(e.dead_volume),
+            slip=hysteresis.slip if hysteresis else np.zeros(0),
+            stiffness=hysteresis.stiffness if hysteresis else np.zeros(0),
+            p_out=float(self.model.params.P_out))
         self._extended = e.active or self.bias_states is not None
         self.reset()
 
@@ -366,14 +444,12 @@ class PamUkf:
         self.rejected_samples = 0     # invalid measurements (non-finite, out of range)
         self.gated_samples = 0        # innovations rejected by the NIS gate
         self.repairs = 0              # covariance repairs (Cholesky fallback)
-        e = self.extensions
-        self._valve = None            # ValveLag, started by the first command
-        self._hysteresis = None
+        self._valve = np.zeros(3)     # [started, u_f1, u_f2]: started by the first command
         self.F_h = np.zeros(2)        # N, hysteresis forces held over the next step
-        if e.hysteresis_band > 0.0:
-            self._hysteresis = MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
-                                           e.hysteresis_travel, self.model.params.P_out)
-            self._hysteresis.update(self.model.outputs(x[:4])[:2], x[2:4])   # relaxed: F_h = 0
+        # the hysteresis memory starts relaxed (F_h = 0) at the eq. (6) forces of x0
+        F1, F2, _ = self.model.outputs_at(x[:4])
+        self._anchor = np.repeat(np.array([[F1], [F2]]),
+                                 max(self._effects.slip.size, 1), axis=1)
 
     def step(self, y, u_prev, supply=None) -> UkfOutput:
         """Predict with u_prev (V, the command held since the last sample), update with y (Pa).
@@ -397,8 +473,8 @@ class PamUkf:
             self.P = np.diag(np.asarray(self.tuning.P0, dtype=float))
             if self.bias_states is not None:
                 self.P = np.diag(np.concatenate([self.tuning.P0, self.bias_states.p0_diag()]))
-            F1, F2, tau = (float(v) for v in m.outputs(self.x[:4]))
-            if self._hysteresis is not None:
+            F1, F2, tau = m.outputs_at(self.x[:4])
+            if self._effects.slip.size:
                 F1, F2 = F1 + self.F_h[0], F2 + self.F_h[1]
                 tau = m.params.r * math.cos(self.x[0]) * (F1 - F2)
             if self.bias_states is not None:
@@ -423,30 +499,12 @@ class PamUkf:
         self.rejected_samples = rejected
 
     def _step_with_effects(self, y, u_prev, supply) -> None:
-        """ukf_step with the extensions and the measured supply: fills self._info."""
-        m, e, info = self.model, self.extensions, self._info
-        u = (sanitise_command(float(u_prev[0]))[0], sanitise_command(float(u_prev[1]))[0])
-        if self._valve is None:
-            self._valve = ValveLag(m.valve_map, m.h, e.valve_time_constant, u)
-        alpha1, alpha2 = self._valve.openings(u)
-        P_tank = m.params.P_tank
+        """ukf_step_with_effects with P_tank of this step: the measured supply when finite and
+        > 0, else the model's; fills self._info."""
+        P_tank = self.model.params.P_tank
         if supply is not None and math.isfinite(supply) and supply > 0.0:
             P_tank = float(supply)
-        self._record['P_tank'] = P_tank
-        lo, hi = self.y_range
-        y1, y2 = float(y[0]), float(y[1])
-        if lo <= y1 <= hi and lo <= y2 <= hi:       # False for NaN
-            y = (y - self._sensor_offset) / self._sensor_gain
-        else:
-            y = np.full(2, np.nan)                  # a faulty raw reading: no update
-        x_post, P_post, F1, F2 = predict_correct_with_effects(
-            self.x, self.P, alpha1, alpha2, y, self._Q, self._R, m.h, self._record,
-            m.friction_code, m.force_code, m.locked, self.lock_angle, self.nis_gate, info,
-            e.dead_volume, self.F_h[0], self.F_h[1])
-        F_h = self.F_h
-        if self._hysteresis is not None and np.all(np.isfinite(x_post)):
-            F_h = self._hysteresis.update((F1, F2), x_post[2:4])
-        estimate_outputs(self.x, self.P, x_post, P_post, m.h, self._record, m.friction_code,
-                         m.force_code, m.locked, F_h[0], F_h[1], info)
-        if info[INFO_FINITE]:
-            self.F_h = F_h
+        if self._record[0]['P_tank'] != P_tank:
+            self._record['P_tank'] = P_tank
+        ukf_step_with_effects(self.x, self.P, u_prev, y, self._effects_model, self._settings,
+                              self._effects, self._valve, self._anchor, self.F_h, self._info)

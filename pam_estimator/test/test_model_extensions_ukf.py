@@ -151,3 +151,69 @@ def test_evaluate_passes_the_extensions_to_both(realistic):
     assert not np.array_equal(alone.torque, alone0.torque)
     assert not np.array_equal(ukf.torque, ukf0.torque)
     assert table['ukf'].Q < plain['ukf'].Q
+
+
+def composed_reference(model, extensions):
+    """The extended step as the composition of its public pieces (the valve lag, the sensor
+    correction, predict_correct_with_effects, the Maxwell-slip memory, estimate_outputs), for
+    the one compiled kernel to be checked against."""
+    from pam_estimator.pam_ukf import (
+        INFO_FINITE,
+        estimate_outputs,
+        predict_correct_with_effects,
+    )
+    from pam_model.effects import MaxwellSlip, ValveLag, sanitised_voltages
+    ukf = PamUkf(model=model, x0=X0, extensions=extensions)
+    x, P, info, m, e = ukf.x.copy(), ukf.P.copy(), np.zeros(10), model, extensions
+    state = {'valve': None, 'F_h': np.zeros(2), 'memory': None}
+    if e.hysteresis_band > 0.0:
+        state['memory'] = MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
+                                      e.hysteresis_travel, m.params.P_out)
+        state['memory'].update(m.outputs(x)[:2], x[2:4])
+    record = m.params_array.copy()
+
+    def step(y, u_prev):
+        u = sanitised_voltages(u_prev)
+        if state['valve'] is None:
+            state['valve'] = ValveLag(m.valve_map, m.h, e.valve_time_constant, u)
+        alpha1, alpha2 = state['valve'].openings(u)
+        y = np.asarray(y, dtype=float)
+        if np.all((y >= ukf.y_range[0]) & (y <= ukf.y_range[1])):
+            y = (y - np.asarray(e.sensor_offset)) / (1.0 + np.asarray(e.sensor_gain_error))
+        else:
+            y = np.full(2, np.nan)
+        F_h = state['F_h']
+        x_post, P_post, F1, F2 = predict_correct_with_effects(
+            x, P, alpha1, alpha2, y, ukf._Q, ukf._R, m.h, record, m.friction_code,
+            m.force_code, m.locked, ukf.lock_angle, ukf.nis_gate, info, e.dead_volume, F_h[0],
+            F_h[1])
+        if state['memory'] is not None and np.all(np.isfinite(x_post)):
+            F_h = state['memory'].update((F1, F2), x_post[2:4])
+        estimate_outputs(x, P, x_post, P_post, m.h, record, m.friction_code, m.force_code,
+                         m.locked, F_h[0], F_h[1], info)
+        if info[INFO_FINITE]:
+            state['F_h'] = F_h
+        return x.copy(), P.copy(), info.copy()
+    return step
+
+
+@pytest.mark.parametrize('locked', [False, True])
+def test_the_extended_kernel_is_the_composition_of_its_pieces(locked):
+    """ukf_step_with_effects (one compiled call a sample) computes exactly what its pieces
+    compute one after the other, through bad readings and bad commands too."""
+    model, run = short_run(locked, RIG, seconds=1.0)
+    reference = composed_reference(model, RIG)
+    ukf = PamUkf(model=model, x0=X0, extensions=RIG)
+    rng = np.random.default_rng(4)
+    for k in range(1, len(run.t)):
+        y, u = run.p_measured[k].copy(), run.u[k - 1].copy()
+        if k % 37 == 0:
+            y[k % 2] = np.nan if k % 74 else 3e6
+        if k % 41 == 0:
+            u[0] = np.inf if k % 82 else rng.uniform(10.5, 20.0)
+        x, P, info = reference(y, u)
+        out = ukf.step(y, u)
+        assert np.array_equal(out.x, x) and np.array_equal(out.P, P)
+        assert (out.force1, out.force2, out.torque, out.torque_variance, out.nis) == tuple(
+            info[[4, 5, 6, 7, 0]])
+    assert ukf.rejected_samples > 0 and np.any(ukf.F_h != 0.0)

@@ -256,7 +256,8 @@ def pressure_scale(P, p_out: float) -> np.ndarray:
 
 def sanitised_voltages(u) -> np.ndarray:
     """u (2,) V as a valve reads it: non-finite as U_MIN, clipped to [U_MIN, U_MAX]."""
-    return np.clip(np.nan_to_num(np.asarray(u, dtype=float), nan=U_MIN), U_MIN, U_MAX)
+    u = np.asarray(u, dtype=float)
+    return np.clip(np.where(np.isfinite(u), u, U_MIN), U_MIN, U_MAX)
 
 
 class MaxwellSlip:
@@ -516,8 +517,8 @@ class EffectsPlant:
 
     def _update_hysteresis(self, x) -> None:
         if self.hysteresis is not None:
-            F1, F2, _ = self.model.outputs(x)
-            self.F_h = self.hysteresis.update((float(F1), float(F2)), x[2:])
+            F1, F2, _ = self.model.outputs_at(x)
+            self.F_h = self.hysteresis.update((F1, F2), x[2:])
         if self.bouc_wen is not None:
             drive = (muscle_lengths.py_func(float(x[0]), self.model.params)
                      if self.effects.bouc_wen_driver == 'length' else x[2:])
@@ -526,8 +527,8 @@ class EffectsPlant:
 
     def outputs(self, x):
         """(F1 N, F2 N, tau N m) of eq. (6)-(8) with the hysteresis forces."""
-        F1, F2, _ = self.model.outputs(x)
-        F1, F2 = float(F1) + self.F_h[0], float(F2) + self.F_h[1]
+        F1, F2, _ = self.model.outputs_at(x)
+        F1, F2 = F1 + self.F_h[0], F2 + self.F_h[1]
         return F1, F2, self.model.params.r * math.cos(x[0]) * (F1 - F2)
 
     def sensed_pressures(self) -> np.ndarray:

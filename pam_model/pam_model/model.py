@@ -92,6 +92,12 @@ class PamModel:
         return physics_vectorised.rk4_steps(X, self.openings(u), self.h, self.params,
                                             self.friction_law, self.force_model, self.locked)
 
+    def outputs_at(self, x) -> tuple[float, float, float]:
+        """outputs() of one state x (4,) as plain floats (F1 N, F2 N, tau N m): one compiled
+        call, for the per-sample paths (the simulated rig, the estimator's reset)."""
+        return physics.outputs_array(np.asarray(x, dtype=float), self.params_array,
+                                     self.force_code)
+
     def outputs(self, X):
         """Forces and torque at states X (..., 4): (F1 N, F2 N, tau N m), eq. (6)-(8)."""
         X = np.asarray(X, dtype=float)

@@ -334,3 +334,12 @@ def step_array(x, u1, u2, h, p_array, kappa_u, kappa_alpha, friction_law, force_
     x_next[0], x_next[1], x_next[2], x_next[3], T_f, sigma = rk4_step(
         x[0], x[1], x[2], x[3], alpha1, alpha2, h, p_array[0], friction_law, force_model, locked)
     return T_f, sigma
+
+
+@njit(cache=True)
+def outputs_array(x, p_array, force_model):
+    """Eq. (6)-(8) at one state array x (4,): (F1 N, F2 N, tau N m); p_array as step_array's.
+    The same numbers as physics_vectorised's forces and torque, without numpy's per-call cost."""
+    p = p_array[0]
+    F1, F2 = muscle_forces(x[0], x[2], x[3], p, force_model)
+    return F1, F2, joint_torque(x[0], F1, F2, p)

@@ -83,7 +83,7 @@ class SimulatedRig:
     def sample(self) -> RigSample:
         """What the sensors read now (draws sensor noise)."""
         if self.plant is None:
-            F1, F2, tau = self.model.outputs(self.x)
+            F1, F2, tau = self.model.outputs_at(self.x)
             P_meas = self.sensor.measure(self.x[2:], self._rng)
         else:
             F1, F2, tau = self.plant.outputs(self.x)

@@ -142,3 +142,14 @@ def test_unknown_law_names_are_rejected():
         PamModel(friction='stribeck')
     with pytest.raises(ValueError, match='force model'):
         PamModel(force='chou')
+
+
+def test_outputs_of_one_state_equal_the_array_form():
+    """PamModel.outputs_at (one compiled call, the per-sample path) gives outputs()'s numbers."""
+    model = PamModel()
+    rng = np.random.default_rng(3)
+    X = np.column_stack([rng.uniform(-0.6, 0.6, 200), rng.normal(0.0, 1.0, 200),
+                         rng.uniform(1e5, 8e5, 200), rng.uniform(1e5, 8e5, 200)])
+    F1, F2, tau = model.outputs(X)
+    for i in range(len(X)):
+        assert model.outputs_at(X[i]) == (F1[i], F2[i], tau[i])

@@ -8,7 +8,7 @@ import pytest
 from pam_model.metrics import metrics, relative_max
 from pam_model.model import PamModel
 from pam_model.profiles import step_reference_profile, validation_profile
-from pam_model.sensor import PressureSensor
+from pam_model.sensor import PressureSensor, adc_reading
 from pam_model.simulate import SimulationResult, simulate
 
 
@@ -38,6 +38,18 @@ def test_sensor_quantises_to_12_bits_and_adds_noise():
     expected = math.sqrt(2000.0 ** 2 + sensor.resolution ** 2 / 12)
     assert np.std(reading - P) == pytest.approx(expected, rel=0.05)
     assert np.all(sensor.measure(np.array([-5e5, 5e6]), rng) == [0.0, 1e6])
+
+
+@pytest.mark.parametrize('bits', [0, 12])
+def test_one_dimensional_readings_equal_the_ufunc_of_any_shape(bits):
+    """A sample's readings (a 1-D array: one compiled loop) are the ufunc's, bit for bit, and a
+    2-D array of the same pressures reads the same."""
+    sensor = PressureSensor(noise_std=0.0, bits=bits, range_min=1e4, range_max=9e5)
+    P = np.random.default_rng(5).uniform(-1e5, 1.1e6, 400)
+    rng = np.random.default_rng(0)
+    flat = sensor.measure(P, rng)
+    assert np.array_equal(flat, adc_reading(P, sensor.resolution, 1e4, 9e5))
+    assert np.array_equal(sensor.measure(P.reshape(20, 20), rng).ravel(), flat)
 
 
 def test_sensor_rejects_impossible_settings():

@@ -45,3 +45,11 @@ def test_the_model_reads_a_bad_voltage_as_the_sanitised_one():
             physics.valve_opening(safe, valve_map.u, valve_map.alpha), u
     sanitised = np.array([sanitise_command(u)[0] for u in BAD_AND_GOOD])
     np.testing.assert_array_equal(valve_map(np.array(BAD_AND_GOOD)), valve_map(sanitised))
+
+
+def test_the_plants_array_form_sanitises_as_the_scalar_rule():
+    """effects.sanitised_voltages (the valves' start) reads every voltage as sanitise_command
+    does: NaN and both infinities vent (U_MIN), the rest is clipped."""
+    from pam_model.effects import sanitised_voltages
+    u = [math.nan, math.inf, -math.inf, -3.0, 4.5, 12.0]
+    assert sanitised_voltages(u).tolist() == [sanitise_command(v)[0] for v in u]
