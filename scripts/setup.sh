@@ -2,10 +2,11 @@
 # The one set-up path of this repository (used by `make setup|test|demo` and CI):
 #   1. checks prerequisites (python 3.10-3.13, cmake >= 3.21, gcc, g++, make),
 #   2. creates .venv/ and installs the pinned requirements.txt (only when it changed),
-#   3. builds and installs the ament_cmake packages (pam_interfaces) into .venv with cmake
-#      (only when their sources changed or the venv was rebuilt),
-#   4. installs the ament_python packages (every folder with package.xml + setup.py) into .venv,
-#      non-editably (only those whose sources changed).
+#   3. installs the ament_python packages (every folder with package.xml + setup.py) into .venv,
+#      non-editably (only those whose sources changed), and compiles the numba kernels (in the
+#      background, while step 4 runs),
+#   4. builds and installs the ament_cmake packages (pam_interfaces) into .venv with cmake
+#      (only when their sources changed or the venv was rebuilt).
 # Idempotent; a run with nothing to do takes well under 2 s.
 # Override the interpreter used to create the venv with PYTHON=/path/to/python3.X.
 set -euo pipefail
@@ -141,8 +142,8 @@ if ! stamp_ok requirements "$req_hash"; then
   did=1
 fi
 
-# ---------------------------------------------------------------- 3. ament_cmake packages
-# Folders at the repo root with package.xml + CMakeLists.txt (today: pam_interfaces).
+# The packages: folders at the repo root with package.xml, and CMakeLists.txt (ament_cmake,
+# today pam_interfaces) or setup.py (ament_python).
 cmake_pkgs=()
 py_pkgs=()
 for d in */; do
@@ -152,44 +153,27 @@ for d in */; do
   elif [[ -f "$d/setup.py" ]]; then py_pkgs+=("$d"); fi
 done
 
-pyver_full="$("$VPY" -c 'import sys; print(sys.version)' 2>/dev/null || true)"
-for pkg in "${cmake_pkgs[@]}"; do
-  h="$(hash_str "$(hash_dir "$pkg")" "$(sha256sum "$CMAKE_FIX")" "$req_hash" "$pyver_full")"
-  stamp_ok "cmake-$pkg" "$h" && continue
-  say "building $pkg (cmake)..."
-  rm -f "$STAMPS/cmake-$pkg"
-  bdir="$BUILD/$pkg"
-  rm -rf "$bdir"   # clean configure: the venv or the generators may have changed
-  run_logged "$pkg-configure" cmake -S "$ROOT/$pkg" -B "$bdir" \
-    -DCMAKE_BUILD_TYPE=Release \
-    -DCMAKE_INSTALL_PREFIX="$VENV" \
-    -DCMAKE_PREFIX_PATH="$VENV" \
-    -DPython3_EXECUTABLE="$VPY" \
-    -DBUILD_TESTING=OFF \
-    -DCMAKE_PROJECT_INCLUDE="$CMAKE_FIX"
-  run_logged "$pkg-build" cmake --build "$bdir" --parallel "$(nproc 2>/dev/null || echo 2)"
-  run_logged "$pkg-install" cmake --install "$bdir"
-  stamp_set "cmake-$pkg" "$h"
-  did=1
-done
-
-# ---------------------------------------------------------------- 4. ament_python packages
+# ---------------------------------------------------------------- 3. ament_python packages
 clean_inplace() { rm -rf "$1/build" "$1"/*.egg-info; }
+changed=()
+declare -A py_hash
 for pkg in "${py_pkgs[@]}"; do
-  h="$(hash_dir "$pkg")"
-  stamp_ok "py-$pkg" "$h" && continue
-  say "installing $pkg..."
-  rm -f "$STAMPS/py-$pkg"
-  clean_inplace "$pkg"
-  # Not editable: pip install -e would skip data_files (ament index marker, package.xml).
-  if ! run_logged "$pkg-install" "$VPY" -m pip install --no-deps --no-build-isolation --no-index \
-       --force-reinstall "./$pkg"; then
-    clean_inplace "$pkg"; exit 1
-  fi
-  clean_inplace "$pkg"
-  stamp_set "py-$pkg" "$h"
-  did=1
+  py_hash[$pkg]="$(hash_dir "$pkg")"
+  stamp_ok "py-$pkg" "${py_hash[$pkg]}" || changed+=("$pkg")
 done
+if ((${#changed[@]})); then
+  # One pip call for all of them (one interpreter start-up, one pass of pip's set-up).
+  # Not editable: pip install -e would skip data_files (ament index marker, package.xml).
+  say "installing ${changed[*]}..."
+  for pkg in "${changed[@]}"; do rm -f "$STAMPS/py-$pkg"; clean_inplace "$pkg"; done
+  if ! run_logged python-packages-install "$VPY" -m pip install --no-deps --no-build-isolation \
+       --no-index --force-reinstall "${changed[@]/#/./}"; then
+    for pkg in "${changed[@]}"; do clean_inplace "$pkg"; done
+    exit 1
+  fi
+  for pkg in "${changed[@]}"; do clean_inplace "$pkg"; stamp_set "py-$pkg" "${py_hash[$pkg]}"; done
+  did=1
+fi
 
 # A package folder that went away (or stopped being an ament_python package): uninstall it.
 if [[ -d "$STAMPS" ]]; then
@@ -205,7 +189,7 @@ if [[ -d "$STAMPS" ]]; then
   done
 fi
 
-# A script that moved between two packages (issue 14: bag_play from pam_driver to pam_bag) is
+# A script that moved between two packages (bag_play, from pam_driver to pam_bag) is
 # deleted by the old owner's reinstall when that comes after the new owner's install: reinstall
 # every package one of whose console scripts is missing from the venv's bin.
 if ((did)); then
@@ -233,10 +217,43 @@ PYEOF
 fi
 
 # pip's reinstall dropped numba's on-disk cache of the compiled kernels: compile them now, once,
-# rather than in the first node or test that runs.
+# rather than in the first node or test that runs. The kernels need no ROS package, so they
+# compile in the background while the ament_cmake packages build (on 2 cores: about 30 s saved).
+warm_pid=""
 if ((did)); then
-  say "compiling the numba kernels (once per install)..."
-  run_logged numba-warm-up "$VPY" "$ROOT/scripts/warm_numba_cache.py" || exit 1
+  say "compiling the numba kernels (once per install; in the background)..."
+  run_logged numba-warm-up "$VPY" "$ROOT/scripts/warm_numba_cache.py" &
+  warm_pid=$!
+  trap '[[ -n "$warm_pid" ]] && kill "$warm_pid" 2>/dev/null' EXIT
+fi
+
+# ---------------------------------------------------------------- 4. ament_cmake packages
+
+pyver_full="$("$VPY" -c 'import sys; print(sys.version)' 2>/dev/null || true)"
+for pkg in "${cmake_pkgs[@]}"; do
+  h="$(hash_str "$(hash_dir "$pkg")" "$(sha256sum "$CMAKE_FIX")" "$req_hash" "$pyver_full")"
+  stamp_ok "cmake-$pkg" "$h" && continue
+  say "building $pkg (cmake)..."
+  rm -f "$STAMPS/cmake-$pkg"
+  bdir="$BUILD/$pkg"
+  rm -rf "$bdir"   # clean configure: the venv or the generators may have changed
+  run_logged "$pkg-configure" cmake -S "$ROOT/$pkg" -B "$bdir" \
+    -DCMAKE_BUILD_TYPE=Release \
+    -DCMAKE_INSTALL_PREFIX="$VENV" \
+    -DCMAKE_PREFIX_PATH="$VENV" \
+    -DPython3_EXECUTABLE="$VPY" \
+    -DBUILD_TESTING=OFF \
+    -DCMAKE_PROJECT_INCLUDE="$CMAKE_FIX"
+  run_logged "$pkg-build" cmake --build "$bdir" --parallel "$(nproc 2>/dev/null || echo 2)"
+  run_logged "$pkg-install" cmake --install "$bdir"
+  stamp_set "cmake-$pkg" "$h"
+  did=1
+done
+
+if [[ -n "$warm_pid" ]]; then
+  wait "$warm_pid" || exit 1
+  warm_pid=""
+  say "numba kernels compiled"
 fi
 
 if ((did)); then say "done"; else say "up to date"; fi
