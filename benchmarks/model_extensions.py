@@ -12,7 +12,7 @@ median step time with and without.
     .venv/bin/python benchmarks/model_extensions.py [--duration 130]
 
 About 2 minutes for 130 s on one core (the plant and the model alone with effects step per
-sample in numpy around numba).
+sample in Python around numba kernels).
 """
 
 import argparse
