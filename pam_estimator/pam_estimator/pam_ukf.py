@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from pam_model.effects import HYSTERESIS_PRESSURE, Effects, MaxwellSlip, lag_factor
+from pam_model.effects import HYSTERESIS_PRESSURE, Effects, MaxwellSlip, ValveLag
 from pam_model.effects_physics import maxwell_slip_update, step_with_effects
 from pam_model.model import PamModel
 from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
@@ -38,11 +38,11 @@ from pam_model.physics import (
     joint_torque,
     muscle_forces,
     rk4_step,
+    sanitised_voltage,
     subsystem_index,
     valve_opening,
 )
 from pam_model.rest import REST_STATE
-from pam_model.valve_voltage import U_MAX, U_MIN
 
 from .bias_ukf import N_BIASED, BiasStates, torque_forces
 from .unscented import (
@@ -265,14 +265,6 @@ class EstimatorEffects(NamedTuple):
 
 
 @njit(cache=True)
-def sanitised_voltage(u):
-    """u (V) as a valve reads it: non-finite as U_MIN, clipped to [U_MIN, U_MAX]."""
-    if not np.isfinite(u):
-        return U_MIN
-    return min(max(u, U_MIN), U_MAX)
-
-
-@njit(cache=True)
 def ukf_step_with_effects(x, P, u_prev, y, model, settings, effects, valve, anchor, F_h, info):
     """One predict + update with the estimator's extensions, in place, as ukf_step: u_prev (2,)
     V sanitised and lagged through the valve state valve (3,) = [started, u_f1, u_f2] (V; the
@@ -398,19 +390,15 @@ class PamUkf:
         self._record = self.model.params_array.copy()    # P_tank of a step written here
         self._kernel_model = self.model.kernel_model()
         self._effects_model = self.model.kernel_model(self._record)
-        hysteresis = (MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
-                                  e.hysteresis_travel, self.model.params.P_out)
-                      if e.hysteresis_band > 0.0 else None)
-        decay = lag_factor(self.model.h, e.valve_time_constant)
+        lag = ValveLag(self.model.valve_map, self.model.h, e.valve_time_constant, (0.0, 0.0))
+        memory = self._new_memory()
         self._effects = EstimatorEffects(
-            valve_decay=decay,
-            valve_mean_weight=(e.valve_time_constant / self.model.h * (1.0 - decay)
-                               if e.valve_time_constant > 0.0 else 0.0),
+            valve_decay=lag.decay, valve_mean_weight=lag.mean_weight,
             sensor_offset=np.array(e.sensor_offset, dtype=float),
             sensor_gain=1.0 + np.array(e.sensor_gain_error, dtype=float),
             dead_volume=float(e.dead_volume),
-            slip=hysteresis.slip if hysteresis else np.zeros(0),
-            stiffness=hysteresis.stiffness if hysteresis else np.zeros(0),
+            slip=memory.slip if memory else np.zeros(0),
+            stiffness=memory.stiffness if memory else np.zeros(0),
             p_out=float(self.model.params.P_out))
         self._extended = e.active or self.bias_states is not None
         self.reset()
@@ -446,10 +434,19 @@ class PamUkf:
         self.repairs = 0              # covariance repairs (Cholesky fallback)
         self._valve = np.zeros(3)     # [started, u_f1, u_f2]: started by the first command
         self.F_h = np.zeros(2)        # N, hysteresis forces held over the next step
-        # the hysteresis memory starts relaxed (F_h = 0) at the eq. (6) forces of x0
-        F1, F2, _ = self.model.outputs_at(x[:4])
-        self._anchor = np.repeat(np.array([[F1], [F2]]),
-                                 max(self._effects.slip.size, 1), axis=1)
+        memory = self._new_memory()
+        self._anchor = np.zeros((2, 1))   # no hysteresis: the kernel never reads it
+        if memory is not None:            # the memory starts relaxed (F_h = 0) at x0's forces
+            memory.update(self.model.outputs_at(x[:4])[:2], x[2:4])
+            self._anchor = memory.anchor
+
+    def _new_memory(self) -> MaxwellSlip | None:
+        """The extensions' Maxwell-slip hysteresis memory, None without hysteresis."""
+        e = self.extensions
+        if e.hysteresis_band <= 0.0:
+            return None
+        return MaxwellSlip(e.hysteresis_band, e.hysteresis_elements, e.hysteresis_travel,
+                           self.model.params.P_out)
 
     def step(self, y, u_prev, supply=None) -> UkfOutput:
         """Predict with u_prev (V, the command held since the last sample), update with y (Pa).

@@ -49,14 +49,21 @@ def clamp_state(psi, psi_dot, P1, P2):
 
 
 @njit(cache=True)
+def sanitised_voltage(u):
+    """u (V) as a valve reads it (valve_voltage.sanitise_command's rule, compiled): non-finite
+    as U_MIN (vent), else clipped to [U_MIN, U_MAX]."""
+    if not math.isfinite(u):
+        return U_MIN
+    return clip(u, U_MIN, U_MAX)
+
+
+@njit(cache=True)
 def valve_opening(u, kappa_u, kappa_alpha):
     """alpha = kappa(u) in [0, 1] by linear interpolation of the kappa table; u in V.
 
     A non-finite voltage reads as 0 V (vent), out-of-range voltages clip to [0, 10] V.
     """
-    if not math.isfinite(u):
-        u = U_MIN
-    u = clip(u, U_MIN, U_MAX)
+    u = sanitised_voltage(u)
     n = kappa_u.shape[0]
     if u <= kappa_u[0]:
         return kappa_alpha[0]
