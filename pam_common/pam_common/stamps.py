@@ -32,5 +32,6 @@ def ns_pair(ns) -> tuple[int, int]:
 def ns_stamp(ns):
     """ns since the epoch (>= 0) as a builtin_interfaces/Time."""
     from builtin_interfaces.msg import Time
-    sec, nanosec = ns_pair(ns)
-    return Time(sec=sec, nanosec=nanosec)
+
+    from .fast_messages import builder
+    return builder(Time)(*ns_pair(ns))

@@ -34,9 +34,11 @@ import time
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.logging import LoggingSeverity
+from std_msgs.msg import Header
 from std_srvs.srv import SetBool
 
 from pam_common.diagnostics import OK, WARN, DiagnosticsPublisher
+from pam_common.fast_messages import builder
 from pam_common.finite_guard import FiniteGuard
 from pam_common.links import LinkedNode
 from pam_common.node_params import ConfigError, usage_text
@@ -64,6 +66,8 @@ from pam_interfaces.msg import (
 
 from .control_loop import ANGLE, MODE_NAMES
 from .pi_config import NODE_NAME, PARAMETERS, SUMMARY, PiConfig
+
+build_header, build_command = builder(Header), builder(ValveCommand)
 
 
 class PiNode(LinkedNode):
@@ -139,9 +143,8 @@ class PiNode(LinkedNode):
         self._publish(out, header.stamp, value)
 
     def _publish(self, out, stamp, feedback: float) -> None:
-        command = ValveCommand(u1=out.u1, u2=out.u2)
-        command.header.stamp = stamp
-        command.header.frame_id = self.config.frame_id
+        command = build_command(build_header(stamp, self.config.frame_id), float(out.u1),
+                                float(out.u2))
         self.command_pub.publish(command)
         self.commands += 1
         self.saturated += int(out.saturated)

@@ -112,10 +112,12 @@ from rclpy.logging import LoggingSeverity
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
+from pam_common.fast_messages import builder
 from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
@@ -138,6 +140,8 @@ NODE_NAME = 'sim_node'
 DIAGNOSTICS_PERIOD = 1.0   # s
 LOG_THROTTLE = 1.0         # s between two log lines about bad input
 COMMAND_STEP_DEBUG = 0.5   # V: a DEBUG line when the applied command moves this far
+build_header, build_pressures, build_joint = (builder(Header), builder(Pressures),
+                                              builder(JointMeasurement))
 
 
 
@@ -253,16 +257,10 @@ class SimNode(LinkedNode):
                                 f'{self.core.nonfinite_state}')
             return None
         stamp = ns_stamp(sample.t_ns)
-        pressures = Pressures()
-        pressures.header.stamp = stamp
-        pressures.header.frame_id = self._frame_id
-        pressures.p1, pressures.p2 = sample.p1, sample.p2
-        pressures.sample = sample.counter
-        joint = JointMeasurement()
-        joint.header.stamp = stamp
-        joint.header.frame_id = self._frame_id
-        joint.angle, joint.angular_velocity, joint.torque = (sample.angle, sample.velocity,
-                                                             sample.torque)
+        pressures = build_pressures(build_header(stamp, self._frame_id), sample.p1, sample.p2,
+                                    sample.counter)
+        joint = build_joint(build_header(stamp, self._frame_id), sample.angle, sample.velocity,
+                            sample.torque)
         clock = Clock(clock=stamp) if self._pub_clock is not None else None
         supply = None
         if sample.supply is not None:

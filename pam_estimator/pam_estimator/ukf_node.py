@@ -43,6 +43,7 @@ from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from pam_common.fast_messages import builder
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.links import LinkedNode
@@ -67,6 +68,7 @@ from .ukf_config import PARAMETERS, build_config, usage_text
 
 NODE_NAME = 'ukf_node'
 LOG_THROTTLE = 1.0   # s
+build_header, build_estimate = builder(Header), builder(JointEstimate)
 
 
 class UkfNode(LinkedNode):
@@ -158,15 +160,14 @@ class UkfNode(LinkedNode):
                                    'so far)')
             if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
                 self._debug_skipped(msg, out.nis)
-        # one constructor call with every field (setting them one by one after a default
-        # construction cost twice as much: 25 vs 14 us a sample here)
+        # built in one step (pam_common.fast_messages): the generated constructor took 5.6 us
         angle, velocity, p1, p2 = out.x[:4].tolist()
-        est = JointEstimate(
-            header=Header(stamp=msg.header.stamp, frame_id=self.frame_id),
-            angle=angle, angular_velocity=velocity, p1=p1, p2=p2, torque=float(out.torque),
+        est = build_estimate(
+            header=build_header(msg.header.stamp, self.frame_id),
+            angle=angle, angular_velocity=velocity, torque=float(out.torque), p1=p1, p2=p2,
             force1=float(out.force1), force2=float(out.force2),
-            covariance=out.P[:4, :4].ravel(),       # without the bias states
-            torque_variance=float(out.torque_variance), subsystem=out.subsystem,
+            covariance=out.P[:4, :4].flatten(),       # a copy, without the bias states
+            torque_variance=float(out.torque_variance), subsystem=int(out.subsystem),
             nis=float(out.nis),
             rejected_samples=self.core.ukf.rejected_samples + self.core.ukf.gated_samples,
             update_skipped=bool(out.update_skipped), sample=msg.sample)
