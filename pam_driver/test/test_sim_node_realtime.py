@@ -44,9 +44,13 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     sim.wait_for(lambda: len(got) > 0, STARTUP, 'the first /pam/pressures sample')
 
     time.sleep(0.5)  # let discovery and the first bursts settle
-    start = time.monotonic()
-    time.sleep(MEASURE)
-    window = [m for r, m in got.items() if start <= r < start + MEASURE]
+    # MEASURE s of the rig's clock (the samples' stamps), not of arrival: on a loaded machine a
+    # sample taken on time may arrive late, behind a backlog; 1 s more for those to arrive
+    start_ns = helpers.stamp_ns(got.messages()[-1].header.stamp)
+    wall_at_start = time.time()
+    time.sleep(MEASURE + 1.0)
+    window = [m for m in got.messages() if start_ns <= helpers.stamp_ns(m.header.stamp)
+              < start_ns + int(MEASURE * 1e9)]
     stamps = [helpers.stamp_ns(m.header.stamp) * 1e-9 for m in window]
 
     assert len(stamps) > 100, f'only {len(stamps)} samples in {MEASURE} s'
@@ -59,10 +63,11 @@ def test_realtime_rate_near_1khz(sim_node, probe, helpers):
     span = stamps[-1] - stamps[0]
     rate = (len(stamps) - 1) / span
     assert abs(rate - RATE) <= 0.05 * RATE, f'achieved {rate:.1f} Hz from the stamps'
-    # stamps follow the wall clock: MEASURE s of reception hold about MEASURE s of stamps
-    assert abs(span - MEASURE) <= 0.1 * MEASURE, f'stamps span {span:.3f} s in {MEASURE} s'
+    # the stamps are the system clock's (the deadline of each sample): the last one received
+    # before the window was taken at most a second before it arrived
+    assert abs(start_ns * 1e-9 - wall_at_start) < 1.0, (start_ns * 1e-9, wall_at_start)
     assert len(stamps) >= 0.9 * MEASURE * RATE, (
-        f'{len(stamps)} samples received in {MEASURE} s, expected about {MEASURE * RATE:.0f}')
+        f'{len(stamps)} samples in {MEASURE} s of stamps, expected about {MEASURE * RATE:.0f}')
     assert all(helpers.all_finite((m.p1, m.p2)) for m in window)
     assert window[-1].header.frame_id == 'pam_joint'
 
