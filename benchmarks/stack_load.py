@@ -21,13 +21,13 @@ ROS domain of their own. After --warmup s the rigs' latency statistics are reset
             their deadline: the loop was not real time);
   cost      CPU per sample (the process CPU over the window / the samples the rigs took) beside
             the models' own compute per sample, measured in this process in the same run
-            (sim step + sample with the scenario's effects, UKF step with the stack's model and
-            extensions, PI step): the ratio is the stack's overhead, machine-independent enough
-            to compare across machines (the absolute CPU is not: 23 % on one machine of a kind,
-            81 % on another); and beside the same three paced at 1 kHz in one thread (sleeping
-            to each 1 ms deadline as sim_node's sampler does): a loop that wakes a thousand
-            times a second pays for the wake-ups and runs with cold caches, a floor that no
-            stack of such a loop gets under;
+            (pam_bringup.model_cost: sim step + sample with the scenario's effects, UKF step
+            with the stack's model and extensions, PI step), back to back and paced at 1 kHz in
+            one thread (a sleep to each 1 ms deadline, as sim_node's sampler: a loop that wakes
+            a thousand times a second pays for the wake-ups and runs with cold caches, a floor
+            no stack of such a loop gets under): the ratios are the stack's overhead,
+            machine-independent enough to compare across machines (the absolute CPU is not:
+            23 % on one machine of a kind, 81 % on another);
 --scenario NAME sets the simulated rig's scenario (default: bringup.yaml's), --identified DIR
 ukf_node's model (params.yaml, kappa.csv, extensions.yaml of a pam-identify output directory).
 --rig driver runs the driver path instead: per joint a pam-emulator (the DAQ board on a pty, its
@@ -62,6 +62,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fault_stack import campaign_domain
+from pam_bringup.model_cost import measure_model_cost
 from pam_bringup.stack import default_params_file, stack_nodes
 from pam_common.diagnostics import status_node, status_values
 from pam_common.executables import find_executable
@@ -281,71 +282,6 @@ def run_mode(mode: str, rig: str, spaces: list[str], params: Path, ports: dict[s
                 p.wait()
 
 
-def kernels_per_sample(scenario: str | None, identified: Path | None,
-                       samples: int = 3000, paced: int = 3000) -> dict[str, float]:
-    """The models' own compute per sample (s), measured here: the simulated rig's step and
-    sample (the scenario's plant and effects), the UKF step (the stack's model and
-    extensions), the PI step; each timed over `samples` steps after a warm-up, back to back.
-    'paced': the three together, once per 1 ms deadline as sim_node's sampler runs them
-    (sleeping to each deadline), this thread's CPU per sample over `paced` deadlines,
-    the sleep's own cost included: what the kernels alone cost in a 1 kHz loop."""
-    from pam_controller.pi import PiController, PiGains
-    from pam_estimator.pam_ukf import PamUkf
-    from pam_model.mismatch import load_scenario
-    from pam_model.model import PamModel
-    from pam_model.model_extensions import NO_EXTENSIONS
-    from pam_model.parameters import load_parameters
-    from pam_model.rig import SimulatedRig
-    from pam_model.valve_map import load_valve_map
-    stack = yaml.safe_load(default_params_file().read_text())
-    sim = stack['/pam/sim_node']['ros__parameters']
-    pi = stack['/pam/pi_node']['ros__parameters']
-    nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
-    plan = load_scenario(scenario or sim['scenario'])
-    plant = PamModel(params=plan.apply(nominal.params), valve_map=nominal.valve_map)
-    x0 = sim['initial_state']
-    rig = SimulatedRig(plant, x0, plan.sensor, 0, tuple(sim['initial_command']),
-                       effects=plan.effects)
-    if identified is not None:
-        from pam_estimator.calibration_runs import load_identified
-        model, extensions = load_identified(identified)
-    else:
-        model, extensions = nominal, NO_EXTENSIONS
-    ukf = PamUkf(model=model, x0=tuple(x0), extensions=extensions)
-    controller = PiController(PiGains(pi['kp_angle'], pi['ki_angle'], pi['beta'], pi['u_min'],
-                                      pi['u_max']))
-    u = tuple(sim['initial_command'])
-
-    def timed(step) -> float:
-        for _ in range(200):
-            step()
-        t0 = time.perf_counter()
-        for _ in range(samples):
-            step()
-        return (time.perf_counter() - t0) / samples
-
-    def rig_step():
-        rig.step()
-        rig.sample()
-    p = rig.sample().p_measured
-    kernels = {'sim': timed(rig_step), 'ukf': timed(lambda: ukf.step(p, u)),
-               'pi': timed(lambda: controller.step(0.01, 1e-3))}
-
-    def one_sample():
-        rig_step()
-        ukf.step(p, u)
-        controller.step(0.01, 1e-3)
-    start = time.monotonic() + 0.01
-    cpu = time.thread_time()
-    for n in range(paced):
-        delay = start + n * 1e-3 - time.monotonic()
-        if delay > 0.0:
-            time.sleep(delay)
-        one_sample()
-    kernels['paced'] = (time.thread_time() - cpu) / paced
-    return kernels
-
-
 def print_results(results: list[dict], joints: int, hogs: int, duration: float,
                   rig: str) -> None:
     print(f'\n{joints} joint(s) at 1 kHz ({rig} rig), {hogs} CPU-bound process(es) beside, '
@@ -432,18 +368,12 @@ def main(argv=None) -> int:
         rclpy.try_shutdown()
     print_results(results, args.joints, args.hog, args.duration, args.rig)
     if args.rig == 'sim':
-        kernels = kernels_per_sample(args.scenario, args.identified)
-        total = kernels['sim'] + kernels['ukf'] + kernels['pi']
-        paced = kernels['paced']
-        print(f"\nthe models' own compute per sample, measured now in this process: sim step "
-              f"{kernels['sim'] * 1e6:.1f} us + UKF step {kernels['ukf'] * 1e6:.1f} us + PI "
-              f"{kernels['pi'] * 1e6:.1f} us = {total * 1e6:.1f} us back to back; the three "
-              f"paced at 1 kHz (a sleep to each deadline, as the rig's sampler): "
-              f"{paced * 1e6:.1f} us of CPU per sample")
+        cost = measure_model_cost(args.scenario, args.identified)
+        print(f'\n{cost.line()}; measured now in this process')
         for r in results:
             print(f"  {r['mode']}: stack CPU per sample {r['cpu per sample'] * 1e6:.1f} us = "
-                  f"{r['cpu per sample'] / total:.1f} x the models' compute "
-                  f"({r['cpu per sample'] / paced:.1f} x the models paced at 1 kHz)")
+                  f"{r['cpu per sample'] / cost.back_to_back:.1f} x the models' compute back to "
+                  f"back ({r['cpu per sample'] / cost.paced:.1f} x the models paced at 1 kHz)")
     return 0
 
 

@@ -67,6 +67,7 @@ from .demo_workflow import (
     write_run_params,
 )
 from .json_file import write_json
+from .model_cost import measure_model_cost
 from .stack import PACKAGE, default_params_file
 from .supervisor import Child, Output, Supervisor
 
@@ -75,6 +76,7 @@ DEFAULT_DURATION = 64.0      # s: the reference profile's 8 steps of 8 s
 DEFAULT_SCENARIO = 'realistic'
 DEMO_DOMAINS = (110, 199)    # the random ROS_DOMAIN_ID's range (inclusive)
 LOG_TAIL_LINES = 30          # of a stack's log, when it stopped early
+MODEL_COST_DEADLINES = 2000  # 1 ms deadlines of the models' paced timing (2 s)
 BRINGUP_SIGTERM_AFTER = 20.0   # s after our SIGINT: more than pam-bringup's own stop (<= 16 s)
 BRINGUP_STOP_TIMEOUT = 30.0    # s after our SIGINT: SIGKILL
 #: the executables of each step, by package
@@ -257,6 +259,9 @@ def main(argv=None) -> int:
     # samples are read against (a bare sleep loop is already late now and then on a VM)
     floor = measure_timer_floor(priority=REALTIME_PRIORITY)
     print(f'demo: this machine now: {floor.line()}', flush=True)
+    # and what the stack's own models cost here: a run on another machine reads against it
+    cost = measure_model_cost(args.scenario, paths.identified, paced=MODEL_COST_DEADLINES)
+    print(f'demo: this machine now: {cost.line()}', flush=True)
     realtime, code = track(args, exe, paths, params, env, steps)
     log = paths.logs / f'tracking_{REALTIME_RUN}.log'
     if log.is_file():
@@ -265,7 +270,8 @@ def main(argv=None) -> int:
     health = (realtime or {}).get('health') or {}
     valid = code == 0 and bool(realtime) and realtime.get('valid') is True
     write_json(paths.summary, demo_summary(args.scenario, args.campaign, identification,
-                                           comparison, realtime, valid, floor.as_dict()))
+                                           comparison, realtime, valid, floor.as_dict(),
+                                           cost.as_dict()))
     if realtime is not None and realtime.get('valid') is False:
         print('demo: INVALID: the real-time run was not real time on this machine ('
               + '; '.join(health.get('reasons') or ['no reason given'])

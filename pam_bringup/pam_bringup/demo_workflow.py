@@ -209,16 +209,17 @@ def batch_comparison(scenario: str, models: dict, settings: dict, duration: floa
 
 
 def demo_summary(scenario: str, campaign: str, identification: dict, comparison: dict,
-                 realtime: dict | None, valid: bool, timer_floor: dict | None = None) -> dict:
+                 realtime: dict | None, valid: bool, timer_floor: dict | None = None,
+                 model_cost: dict | None = None) -> dict:
     """out/demo_summary.json: the scenario, the campaign, what identification left at the
     prior; 'comparison': per model ('nominal', 'identified') the batch closed loop's figures
-    (batch_comparison); 'timer_floor': the machine's own timer measured just before the
-    real-time run (pam_common.timer_floor); 'realtime': the identified real-time run's
-    tracking_report summary with its 'health'; 'valid': whether that run was real time (its
-    figures are results)."""
+    (batch_comparison); 'timer_floor': the machine's own timer and 'model_cost' the stack's
+    models' compute per sample (s; pam_bringup.model_cost), both measured just before the
+    real-time run; 'realtime': the identified real-time run's tracking_report summary with its
+    'health'; 'valid': whether that run was real time (its figures are results)."""
     return {'scenario': scenario, 'campaign': campaign, 'identification': identification,
-            'comparison': comparison, 'timer_floor': timer_floor, 'realtime': realtime,
-            'valid': valid}
+            'comparison': comparison, 'timer_floor': timer_floor, 'model_cost': model_cost,
+            'realtime': realtime, 'valid': valid}
 
 
 def settling(seconds) -> str:

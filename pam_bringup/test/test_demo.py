@@ -108,6 +108,13 @@ def test_the_demo_runs_the_workflow_and_stops_the_stack(node_process, ros_domain
     # the machine's timer floor, measured just before the real-time run, printed and kept
     assert 'demo: this machine now: a bare 1000 Hz sleep loop (' in stdout, stdout
     assert summary['timer_floor']['deadlines'] == 3000, summary['timer_floor']
+    # and the models' compute per sample on this machine, with the identified model
+    assert "demo: this machine now: the models' compute per sample (the 'realistic' rig, the " \
+        f"identified ({out / 'demo' / 'identified'}) UKF, PI): " in stdout, stdout
+    cost = summary['model_cost']
+    assert cost['scenario'] == 'realistic' and cost['model'].startswith('identified'), cost
+    assert 0.0 < cost['back_to_back'] == cost['sim'] + cost['ukf'] + cost['pi'], cost
+    assert 0.0 < cost['paced'] < 1e-3, cost
     for step in ('1/4 calibration campaign', '2/4 identification', '3/4 batch comparison',
                  '4/4 real-time sensor-less tracking with the identified model'):
         assert f'demo: {step}' in stdout, stdout

