@@ -84,9 +84,9 @@ from pam_driver.calibration import SUPPLY
 from pam_driver.driver_config import PARAMETERS, DriverConfig, build_config, usage_text
 from pam_driver.driver_core import Action, DriverCore
 from pam_driver.driver_health import DriverHealth, SafetyState
-from pam_driver.rig_publishers import rig_publishers
+from pam_driver.rig_publishers import build_header, build_joint, build_pressures, rig_publishers
 from pam_driver.serial_session import SerialSession
-from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
+from pam_interfaces.msg import ValveCommand
 
 NODE_NAME = 'driver_node'
 DIAGNOSTICS_PERIOD = 1.0
@@ -327,11 +327,7 @@ class DriverNode(LinkedNode):
         t_ns = self.get_clock().now().nanoseconds
         self._timing.on_sample(t_ns)
         stamp = ns_stamp(t_ns)
-        msg = Pressures()
-        msg.header.stamp = stamp
-        msg.header.frame_id = self._frame_id
-        msg.p1, msg.p2 = p[0], p[1]
-        msg.sample = number
+        msg = build_pressures(build_header(stamp, self._frame_id), p[0], p[1], number)
         self._pub_pressures.publish(msg)
         if supply:
             self._publish_supply(stamp, p[SUPPLY], self._core.plausible[SUPPLY])
@@ -343,11 +339,7 @@ class DriverNode(LinkedNode):
             self._prev_angle = angle
             torque = None
             if info.has_torque:
-                joint = JointMeasurement()
-                joint.header = msg.header
-                joint.angle = angle
-                joint.angular_velocity = velocity
-                joint.torque = cal.torque(s.adc_torque)
+                joint = build_joint(msg.header, angle, velocity, cal.torque(s.adc_torque))
                 self._pub_joint.publish(joint)      # its guard holds the last finite values
                 angle, velocity, torque = joint.angle, joint.angular_velocity, joint.torque
             self._joint_states.publish(stamp, msg.sample, angle, velocity, torque)

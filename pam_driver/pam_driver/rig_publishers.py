@@ -1,19 +1,26 @@
 """The publishers both rigs have (sim_node, driver_node), made one way: pressures and
 joint_measured through a FiniteGuard that holds the last finite values (a non-finite sample never
 leaves the node), and joint_measured as sensor_msgs/JointState for the standard tools
-(pam_common.joint_states), all with the sample profile (SAMPLE_QOS)."""
+(pam_common.joint_states), all with the sample profile (SAMPLE_QOS); and the builders of their
+per-sample messages (pam_common.fast_messages: one step each, not rosidl's constructor)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 
+from pam_common.fast_messages import builder
 from pam_common.finite_guard import FiniteGuard
 from pam_common.joint_states import JointStates
 from pam_common.qos import SAMPLE_QOS
 from pam_common.topics import JOINT_MEASURED, JOINT_STATES, PRESSURES
 from pam_interfaces.msg import JointMeasurement, Pressures
+
+build_header = builder(Header)                  # (stamp, frame_id)
+build_pressures = builder(Pressures)            # (header, p1, p2, sample)
+build_joint = builder(JointMeasurement)         # (header, angle, angular_velocity, torque)
 
 
 @dataclass

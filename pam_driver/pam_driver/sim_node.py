@@ -112,12 +112,10 @@ from rclpy.logging import LoggingSeverity
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure
-from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
-from pam_common.fast_messages import builder
 from pam_common.links import LinkedNode
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
@@ -130,18 +128,21 @@ from pam_common.topics import (
     SUPPLY_PRESSURE,
     VALVE_COMMAND,
 )
-from pam_driver.rig_publishers import rig_publishers
+from pam_driver.rig_publishers import (
+    build_header,
+    build_joint,
+    build_pressures,
+    rig_publishers,
+)
 from pam_driver.sim_config import PARAMETERS, ConfigError, build_config, usage_text
 from pam_driver.sim_core import RealtimeSampler, SimCore, SimSample
-from pam_interfaces.msg import JointMeasurement, Pressures, ValveCommand
+from pam_interfaces.msg import ValveCommand
 from pam_model.valve_voltage import SANITISE_RULE
 
 NODE_NAME = 'sim_node'
 DIAGNOSTICS_PERIOD = 1.0   # s
 LOG_THROTTLE = 1.0         # s between two log lines about bad input
 COMMAND_STEP_DEBUG = 0.5   # V: a DEBUG line when the applied command moves this far
-build_header, build_pressures, build_joint = (builder(Header), builder(Pressures),
-                                              builder(JointMeasurement))
 
 
 
