@@ -30,13 +30,19 @@ import numpy as np
 from numba import njit
 
 from pam_model.effects import HYSTERESIS_PRESSURE, Effects, MaxwellSlip, ValveLag
-from pam_model.effects_physics import maxwell_slip_update, step_with_effects
+from pam_model.effects_physics import (
+    bouc_wen_advance,
+    bouc_wen_update,
+    maxwell_slip_update,
+    step_with_effects,
+)
 from pam_model.model import PamModel
 from pam_model.model_extensions import ESTIMATOR_FIELDS, NO_EXTENSIONS
 from pam_model.physics import (
     friction_torque,
     joint_torque,
     muscle_forces,
+    muscle_lengths,
     rk4_step,
     sanitised_voltage,
     subsystem_index,
@@ -101,17 +107,28 @@ INFO_FIELDS = ('nis', 'valid', 'accepted', 'repairs', 'force1', 'force2', 'torqu
 
 @njit(cache=True)
 def propagate_with_effects(sigmas, alpha1, alpha2, h, p_array, friction_law, force_model, locked,
-                           V_d, F_h1, F_h2):
+                           V_d, F_h1, F_h2, loop, loop_state):
     """propagate() through pam_model.effects_physics.step_with_effects: dead volume V_d (m^3) in
-    eq. (4), hysteresis forces F_h1, F_h2 (N) held over the step, the same for every point.
-    With the bias states (7 columns) each point's b_tau adds its torque_forces and the biases
-    are carried unchanged."""
+    eq. (4), Maxwell-slip forces F_h1, F_h2 (N) held over the step, the same for every point;
+    with a Bouc-Wen loop (loop: an EstimatorEffects, its band != 0) each point adds the loop's
+    force at its own driver, z advanced from the memory loop_state (rows: z, the driver before)
+    (held over the step: the loop acts per sigma point, as the friction does). With the
+    bias states (7 columns) each point's b_tau adds its torque_forces and the biases are carried
+    unchanged."""
     out = np.empty_like(sigmas)
     biased = sigmas.shape[1] > N_STATE
+    drive = np.empty(2)
     for i in range(sigmas.shape[0]):
         fh1, fh2 = F_h1, F_h2
+        if loop.bouc_wen_band != 0.0:
+            bouc_wen_drive(sigmas[i], p_array[0], loop.bouc_wen_by_length,
+                           loop.bouc_wen_travel, drive)
+            fh1 += bouc_wen_force(sigmas[i, 2], loop,
+                                  bouc_wen_advance(loop_state[0, 0], drive[0] - loop_state[1, 0]))
+            fh2 += bouc_wen_force(sigmas[i, 3], loop,
+                                  bouc_wen_advance(loop_state[0, 1], drive[1] - loop_state[1, 1]))
         if biased:
-            fh1, fh2 = torque_forces(sigmas[i, 0], sigmas[i, 6], p_array[0], F_h1, F_h2)
+            fh1, fh2 = torque_forces(sigmas[i, 0], sigmas[i, 6], p_array[0], fh1, fh2)
             out[i, N_STATE:] = sigmas[i, N_STATE:]
         step_with_effects(sigmas[i], alpha1, alpha2, h, p_array, friction_law, force_model,
                           locked, V_d, fh1, fh2, out[i])
@@ -232,15 +249,15 @@ def ukf_step(x, P, u_prev, y, model, settings, info):
 @njit(cache=True)
 def predict_correct_with_effects(x, P, alpha1, alpha2, y, Q, R, h, p_array, friction_law,
                                  force_model, locked, lock_angle, nis_gate, info, V_d, F_h1,
-                                 F_h2):
+                                 F_h2, loop, loop_state):
     """ukf_step's predict and update with the estimator's extensions: openings alpha already
-    lagged, dead volume V_d (m^3), hysteresis forces F_h1, F_h2 (N) held over the step, P_tank
-    of the step in p_array; y already corrected for the sensors (non-finite = no update).
-    Returns (x_post, P_post, F1, F2): the posterior and its nominal eq. (6) forces (N), which
-    drive the hysteresis memory."""
+    lagged, dead volume V_d (m^3), Maxwell-slip forces F_h1, F_h2 (N) held over the step, the
+    Bouc-Wen loop per sigma point (propagate_with_effects), P_tank of the step in p_array; y
+    already corrected for the sensors (non-finite = no update). Returns (x_post, P_post, F1,
+    F2): the posterior and its nominal eq. (6) forces (N), which drive the Maxwell slip."""
     sigmas, rep1 = julier_sigma_points(x, P, KAPPA)
     sigmas_f = propagate_with_effects(sigmas, alpha1, alpha2, h, p_array, friction_law,
-                                      force_model, locked, V_d, F_h1, F_h2)
+                                      force_model, locked, V_d, F_h1, F_h2, loop, loop_state)
     x_post, P_post = correct(sigmas_f, Q, R, y, locked, lock_angle, nis_gate, -np.inf, np.inf,
                              info)
     info[INFO_REPAIRS] += int(rep1)
@@ -251,8 +268,10 @@ def predict_correct_with_effects(x, P, alpha1, alpha2, y, Q, R, h, p_array, fric
 class EstimatorEffects(NamedTuple):
     """The estimator's extensions as ukf_step_with_effects takes them, in one record: the valve
     lag's per-step decay e^(-h/tau) and mean weight (-; 0, 0: no lag), sensor offset o (2,) Pa
-    and gain 1 + g (2,) (-), dead volume V_d (m^3), and the Maxwell-slip elements' slip forces
-    (n,) N at 500 kPa and stiffnesses (n,) N/N (n = 0: no hysteresis) with P_out (Pa abs)."""
+    and gain 1 + g (2,) (-), dead volume V_d (m^3), the Maxwell-slip elements' slip forces
+    (n,) N at 500 kPa and stiffnesses (n,) N/N (n = 0: no Maxwell slip) with P_out (Pa abs),
+    and the Bouc-Wen loop: its band B_w (N at 500 kPa, signed; 0: none), driven by the muscle
+    length (True) or pressure (False), its travel (m or Pa per e-fold of z)."""
 
     valve_decay: float
     valve_mean_weight: float
@@ -262,16 +281,41 @@ class EstimatorEffects(NamedTuple):
     slip: np.ndarray
     stiffness: np.ndarray
     p_out: float
+    bouc_wen_band: float
+    bouc_wen_by_length: bool
+    bouc_wen_travel: float
 
 
 @njit(cache=True)
-def ukf_step_with_effects(x, P, u_prev, y, model, settings, effects, valve, anchor, F_h, info):
+def bouc_wen_force(P, loop, z):
+    """N: the Bouc-Wen loop's force B_w c(P) z of a muscle at pressure P (Pa abs) with state z
+    (-); loop: an EstimatorEffects."""
+    return loop.bouc_wen_band * (max(P - loop.p_out, 0.0) / (HYSTERESIS_PRESSURE - loop.p_out)) * z
+
+
+@njit(cache=True)
+def bouc_wen_drive(x, p, by_length, travel, out):
+    """out (2,) (-): the Bouc-Wen driver of each muscle at state x over its travel: the lengths
+    l1, l2 (m) at psi (by_length) or the pressures P1, P2 (Pa), divided by travel (m or Pa)."""
+    if by_length:
+        l1, l2 = muscle_lengths(x[0], p)
+        out[0], out[1] = l1 / travel, l2 / travel
+    else:
+        out[0], out[1] = x[2] / travel, x[3] / travel
+
+
+@njit(cache=True)
+def ukf_step_with_effects(x, P, u_prev, y, model, settings, effects, valve, anchor, bouc_wen,
+                          F_h, info):
     """One predict + update with the estimator's extensions, in place, as ukf_step: u_prev (2,)
     V sanitised and lagged through the valve state valve (3,) = [started, u_f1, u_f2] (V; the
     first command starts the lag at itself); a raw reading y (2,) Pa outside [y_min, y_max]
     (or non-finite) means no update, else it is corrected to (y - o) / (1 + g); the hysteresis
-    memory anchor (2, n) N moves with the finite posterior's eq. (6) forces, and F_h (2,) N
-    (held over the next step) takes the new forces when the posterior is finite. model: a
+    memory anchor (2, n) N moves with the finite posterior's eq. (6) forces and F_h (2,) N
+    (held over the next step) takes its new forces when the posterior is finite; the Bouc-Wen
+    memory bouc_wen (3, 2) = [z, the driver before (-), the loop's force (N)] moves with the
+    finite posterior's driver (the prediction adds the loop per sigma point; the outputs add
+    its force at the posterior). model: a
     KernelModel (P_tank of the step in its p_array); settings: a FilterSettings; effects: an
     EstimatorEffects; info (10,) receives INFO_FIELDS."""
     u1, u2 = sanitised_voltage(u_prev[0]), sanitised_voltage(u_prev[1])
@@ -292,14 +336,23 @@ def ukf_step_with_effects(x, P, u_prev, y, model, settings, effects, valve, anch
     x_post, P_post, F1, F2 = predict_correct_with_effects(
         x, P, alpha1, alpha2, y_corrected, settings.Q, settings.R, model.h, model.p_array,
         model.friction_law, model.force_model, model.locked, settings.lock_angle,
-        settings.nis_gate, info, effects.dead_volume, F_h[0], F_h[1])
+        settings.nis_gate, info, effects.dead_volume, F_h[0], F_h[1], effects, bouc_wen)
     F_h_next = F_h.copy()
     if effects.slip.size > 0 and np.all(np.isfinite(x_post)):
         s = np.array((F1, F2))
         maxwell_slip_update(s, x_post[2:4], effects.slip, effects.stiffness, effects.p_out,
                             HYSTERESIS_PRESSURE, anchor, F_h_next)
+    F_out = F_h_next
+    if effects.bouc_wen_band != 0.0:
+        if np.all(np.isfinite(x_post)):
+            drive = np.empty(2)
+            bouc_wen_drive(x_post, model.p_array[0], effects.bouc_wen_by_length,
+                           effects.bouc_wen_travel, drive)
+            bouc_wen_update(drive, bouc_wen[1], bouc_wen[0], effects.bouc_wen_band, x_post[2:4],
+                            effects.p_out, HYSTERESIS_PRESSURE, bouc_wen[2])
+        F_out = F_h_next + bouc_wen[2]
     estimate_outputs(x, P, x_post, P_post, model.h, model.p_array, model.friction_law,
-                     model.force_model, model.locked, F_h_next[0], F_h_next[1], info)
+                     model.force_model, model.locked, F_out[0], F_out[1], info)
     if info[INFO_FINITE]:
         F_h[:] = F_h_next
 
@@ -353,8 +406,10 @@ class PamUkf:
     extensions: the model's extensions (pam_model.model_extensions; docs/model_extensions.md),
     the paper's model by default (NO_EXTENSIONS: the same numbers as before, bit for bit):
     valve lag of the known commands (pam_model.effects.ValveLag), dead volume V_d in eq. (4),
-    Maxwell-slip force hysteresis driven by the posterior's eq. (6) forces and held over the next
-    step (the same for every sigma point; in the outputs), sensor offset o and gain error g: the
+    Maxwell-slip force hysteresis driven by the posterior's eq. (6) forces and a Bouc-Wen loop
+    driven by the posterior's muscle lengths or pressures (pam_model.effects.BoucWen), their
+    forces held over the next step (the same for every sigma point; in the outputs), sensor
+    offset o and gain error g: the
     reading y becomes (y - o) / (1 + g) before the update (the range check is on y).
     bias_states: None (the default: the 4-state filter, unchanged) or a bias_ukf.BiasStates: the
     state grows to [psi, psi_dot, P1, P2, b1, b2, b_tau] with random-walk sensor offsets b1, b2
@@ -399,7 +454,11 @@ class PamUkf:
             dead_volume=float(e.dead_volume),
             slip=memory.slip if memory else np.zeros(0),
             stiffness=memory.stiffness if memory else np.zeros(0),
-            p_out=float(self.model.params.P_out))
+            p_out=float(self.model.params.P_out),
+            bouc_wen_band=float(e.bouc_wen_band),
+            bouc_wen_by_length=e.bouc_wen_driver == 'length',
+            bouc_wen_travel=float(e.bouc_wen_length_travel if e.bouc_wen_driver == 'length'
+                                  else e.bouc_wen_pressure_travel))
         self._extended = e.active or self.bias_states is not None
         self.reset()
 
@@ -433,12 +492,17 @@ class PamUkf:
         self.gated_samples = 0        # innovations rejected by the NIS gate
         self.repairs = 0              # covariance repairs (Cholesky fallback)
         self._valve = np.zeros(3)     # [started, u_f1, u_f2]: started by the first command
-        self.F_h = np.zeros(2)        # N, hysteresis forces held over the next step
+        self.F_h = np.zeros(2)        # N, Maxwell-slip forces held over the next step
         memory = self._new_memory()
         self._anchor = np.zeros((2, 1))   # no hysteresis: the kernel never reads it
         if memory is not None:            # the memory starts relaxed (F_h = 0) at x0's forces
             memory.update(self.model.outputs_at(x[:4])[:2], x[2:4])
             self._anchor = memory.anchor
+        self._bouc_wen = np.zeros((3, 2))   # [z, driver before, force]: z = 0 (no force) at x0
+        effects = self._effects
+        if effects.bouc_wen_band != 0.0:
+            bouc_wen_drive(x, self._kernel_model.p_array[0], effects.bouc_wen_by_length,
+                           effects.bouc_wen_travel, self._bouc_wen[1])
 
     def _new_memory(self) -> MaxwellSlip | None:
         """The extensions' Maxwell-slip hysteresis memory, None without hysteresis."""
@@ -471,8 +535,9 @@ class PamUkf:
             if self.bias_states is not None:
                 self.P = np.diag(np.concatenate([self.tuning.P0, self.bias_states.p0_diag()]))
             F1, F2, tau = m.outputs_at(self.x[:4])
-            if self._effects.slip.size:
-                F1, F2 = F1 + self.F_h[0], F2 + self.F_h[1]
+            if self._effects.slip.size or self._effects.bouc_wen_band:
+                F1 = F1 + self.F_h[0] + self._bouc_wen[2, 0]
+                F2 = F2 + self.F_h[1] + self._bouc_wen[2, 1]
                 tau = m.params.r * math.cos(self.x[0]) * (F1 - F2)
             if self.bias_states is not None:
                 tau += float(self.x[6])
@@ -504,4 +569,5 @@ class PamUkf:
         if self._record[0]['P_tank'] != P_tank:
             self._record['P_tank'] = P_tank
         ukf_step_with_effects(self.x, self.P, u_prev, y, self._effects_model, self._settings,
-                              self._effects, self._valve, self._anchor, self.F_h, self._info)
+                              self._effects, self._valve, self._anchor, self._bouc_wen, self.F_h,
+                              self._info)

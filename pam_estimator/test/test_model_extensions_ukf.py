@@ -29,6 +29,11 @@ X0 = (0.0, 0.0, 4.5e5, 4.5e5)
 #: Estimator-side effects of the size of the 'realistic' scenario's.
 RIG = Effects(valve_time_constant=0.005, dead_volume=6.0e-6, hysteresis_band=2.0,
               sensor_offset=(2000.0, -3000.0), sensor_gain_error=(0.005, -0.005))
+#: With a Bouc-Wen loop of either driver and orientation beside the Maxwell slip.
+LOOPS = (replace(RIG, bouc_wen_band=-1.5, bouc_wen_driver='length',
+                 bouc_wen_length_travel=8e-4),
+         replace(RIG, hysteresis_band=0.0, bouc_wen_band=2.0, bouc_wen_driver='pressure',
+                 bouc_wen_pressure_travel=3e4))
 
 
 def true_extensions(effects: Effects) -> Effects:
@@ -155,21 +160,33 @@ def test_evaluate_passes_the_extensions_to_both(realistic):
 
 def composed_reference(model, extensions):
     """The extended step as the composition of its public pieces (the valve lag, the sensor
-    correction, predict_correct_with_effects, the Maxwell-slip memory, estimate_outputs), for
-    the one compiled kernel to be checked against."""
+    correction, predict_correct_with_effects, the Maxwell-slip and Bouc-Wen memories,
+    estimate_outputs), for the one compiled kernel to be checked against."""
     from pam_estimator.pam_ukf import (
         INFO_FINITE,
         estimate_outputs,
         predict_correct_with_effects,
     )
-    from pam_model.effects import MaxwellSlip, ValveLag, sanitised_voltages
+    from pam_model.effects import BoucWen, MaxwellSlip, ValveLag, sanitised_voltages
+    from pam_model.physics import muscle_lengths
     ukf = PamUkf(model=model, x0=X0, extensions=extensions)
     x, P, info, m, e = ukf.x.copy(), ukf.P.copy(), np.zeros(10), model, extensions
-    state = {'valve': None, 'F_h': np.zeros(2), 'memory': None}
+    state = {'valve': None, 'F_h': np.zeros(2), 'memory': None, 'loop': None,
+             'F_bw': np.zeros(2)}
     if e.hysteresis_band > 0.0:
         state['memory'] = MaxwellSlip(e.hysteresis_band, e.hysteresis_elements,
                                       e.hysteresis_travel, m.params.P_out)
         state['memory'].update(m.outputs(x)[:2], x[2:4])
+
+    def drive(x):
+        if e.bouc_wen_driver == 'length':
+            return np.array(muscle_lengths.py_func(float(x[0]), m.params))
+        return x[2:4]
+    if e.bouc_wen_band != 0.0:
+        state['loop'] = BoucWen(e.bouc_wen_band, e.bouc_wen_length_travel
+                                if e.bouc_wen_driver == 'length' else
+                                e.bouc_wen_pressure_travel, m.params.P_out)
+        state['loop'].update(drive(x), x[2:4])       # z = 0 at x0: no force
     record = m.params_array.copy()
 
     def step(y, u_prev):
@@ -182,28 +199,35 @@ def composed_reference(model, extensions):
             y = (y - np.asarray(e.sensor_offset)) / (1.0 + np.asarray(e.sensor_gain_error))
         else:
             y = np.full(2, np.nan)
-        F_h = state['F_h']
+        F_h, loop = state['F_h'], state['loop']
+        loop_state = np.zeros((3, 2)) if loop is None else np.array(
+            [loop.z, loop.drive_before, state['F_bw']])
         x_post, P_post, F1, F2 = predict_correct_with_effects(
             x, P, alpha1, alpha2, y, ukf._Q, ukf._R, m.h, record, m.friction_code,
             m.force_code, m.locked, ukf.lock_angle, ukf.nis_gate, info, e.dead_volume, F_h[0],
-            F_h[1])
+            F_h[1], ukf._effects, loop_state)
         if state['memory'] is not None and np.all(np.isfinite(x_post)):
             F_h = state['memory'].update((F1, F2), x_post[2:4])
+        if loop is not None and np.all(np.isfinite(x_post)):
+            state['F_bw'] = loop.update(drive(x_post), x_post[2:4])
+        F_out = F_h + state['F_bw'] if loop is not None else F_h
         estimate_outputs(x, P, x_post, P_post, m.h, record, m.friction_code, m.force_code,
-                         m.locked, F_h[0], F_h[1], info)
+                         m.locked, F_out[0], F_out[1], info)
         if info[INFO_FINITE]:
             state['F_h'] = F_h
         return x.copy(), P.copy(), info.copy()
     return step
 
 
+@pytest.mark.parametrize('extensions', (RIG, *LOOPS), ids=['maxwell', 'length', 'pressure'])
 @pytest.mark.parametrize('locked', [False, True])
-def test_the_extended_kernel_is_the_composition_of_its_pieces(locked):
+def test_the_extended_kernel_is_the_composition_of_its_pieces(locked, extensions):
     """ukf_step_with_effects (one compiled call a sample) computes exactly what its pieces
-    compute one after the other, through bad readings and bad commands too."""
+    compute one after the other, through bad readings and bad commands too; with a Bouc-Wen
+    loop of either driver too."""
     model, run = short_run(locked, RIG, seconds=1.0)
-    reference = composed_reference(model, RIG)
-    ukf = PamUkf(model=model, x0=X0, extensions=RIG)
+    reference = composed_reference(model, extensions)
+    ukf = PamUkf(model=model, x0=X0, extensions=extensions)
     rng = np.random.default_rng(4)
     for k in range(1, len(run.t)):
         y, u = run.p_measured[k].copy(), run.u[k - 1].copy()
@@ -216,4 +240,7 @@ def test_the_extended_kernel_is_the_composition_of_its_pieces(locked):
         assert np.array_equal(out.x, x) and np.array_equal(out.P, P)
         assert (out.force1, out.force2, out.torque, out.torque_variance, out.nis) == tuple(
             info[[4, 5, 6, 7, 0]])
-    assert ukf.rejected_samples > 0 and np.any(ukf.F_h != 0.0)
+    assert ukf.rejected_samples > 0
+    assert np.any(ukf.F_h != 0.0) == (extensions.hysteresis_band > 0.0)
+    moves = not (locked and extensions.bouc_wen_driver == 'length')   # a locked length stands
+    assert np.any(ukf._bouc_wen[2] != 0.0) == (extensions.bouc_wen_band != 0.0 and moves)

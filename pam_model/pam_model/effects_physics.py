@@ -94,30 +94,38 @@ def maxwell_slip_update(s, P, slip, stiffness, p_out, p_band, anchor, force):
 
 
 @njit(cache=True)
+def bouc_wen_advance(z, dx):
+    """The Bouc-Wen state z (-) after the driver's increment dx (driver divided by its travel,
+    -): dz = dx - (|dx| z + dx |z|) / 2, solved exactly: linear up to z = 0 while z opposes dx,
+    then z = sgn(dx) (1 - (1 - |z|) e^(-|dx|))."""
+    if dx == 0.0:
+        return z
+    sign = 1.0 if dx > 0.0 else -1.0
+    w = sign * z                         # z along the motion
+    step = abs(dx)
+    if w < 0.0:                          # reversal: dz/dx = 1 until z = 0
+        if step <= -w:
+            w += step
+            step = 0.0
+        else:
+            step += w
+            w = 0.0
+    if step > 0.0:
+        w = 1.0 - (1.0 - w) * np.exp(-step)
+    return sign * w
+
+
+@njit(cache=True)
 def bouc_wen_update(drive, drive_before, z, band, P, p_out, p_band, force):
     """One sample of the Bouc-Wen hysteresis of each muscle i (pam_model.effects.BoucWen):
     z_i (-) moves with the driver's increment dx = drive[i] - drive_before[i] (driver already
-    divided by its travel, -) by dz = dx - (|dx| z + dx |z|) / 2, solved exactly: linear up to
-    z = 0 while z opposes dx, then z = sgn(dx) (1 - (1 - |z|) e^(-|dx|)). force[i] = band
-    c(P_i) z_i (N), c(P) = max(P - P_out, 0) / (p_band - P_out). z and force updated in place;
-    drive_before takes drive."""
+    divided by its travel, -) as bouc_wen_advance. force[i] = band c(P_i) z_i (N), c(P) =
+    max(P - P_out, 0) / (p_band - P_out). z and force updated in place; drive_before takes
+    drive."""
     for i in range(z.size):
         dx = drive[i] - drive_before[i]
         drive_before[i] = drive[i]
-        if dx != 0.0:
-            sign = 1.0 if dx > 0.0 else -1.0
-            w = sign * z[i]                  # z along the motion
-            step = abs(dx)
-            if w < 0.0:                      # reversal: dz/dx = 1 until z = 0
-                if step <= -w:
-                    w += step
-                    step = 0.0
-                else:
-                    step += w
-                    w = 0.0
-            if step > 0.0:
-                w = 1.0 - (1.0 - w) * np.exp(-step)
-            z[i] = sign * w
+        z[i] = bouc_wen_advance(z[i], dx)
         force[i] = band * (max(P[i] - p_out, 0.0) / (p_band - p_out)) * z[i]
 
 

@@ -11,7 +11,10 @@ what an estimator can know about its own rig:
 * ``valve_time_constant`` tau_v (s): the valve spool's first-order lag of the command;
 * ``dead_volume`` V_d (m^3 per muscle): the air line's volume in eq. (4);
 * ``hysteresis_band`` B (N at 500 kPa), ``hysteresis_travel`` Delta (N), ``hysteresis_elements``
-  n: the Maxwell-slip force hysteresis added to eq. (6);
+  n: the Maxwell-slip force hysteresis added to eq. (6), driven by the nominal force;
+* ``bouc_wen_band`` B_w (N at 500 kPa, signed: the loop's orientation), ``bouc_wen_driver``
+  ('length' or 'pressure'), ``bouc_wen_length_travel`` (m) / ``bouc_wen_pressure_travel`` (Pa):
+  the Bouc-Wen force hysteresis added to eq. (6), driven by the muscle's length or pressure;
 * ``sensor_offset`` [o1, o2] (Pa), ``sensor_gain_error`` [g1, g2] (fraction): the transducers'
   reading (1 + g) P + o, inverted before the UKF's update.
 
@@ -36,8 +39,9 @@ from .parameters import ParameterError, read_yaml
 
 #: The Effects fields an estimator's model may carry.
 ESTIMATOR_FIELDS = ('valve_time_constant', 'dead_volume', 'hysteresis_band',
-                    'hysteresis_travel', 'hysteresis_elements', 'sensor_offset',
-                    'sensor_gain_error')
+                    'hysteresis_travel', 'hysteresis_elements', 'bouc_wen_band',
+                    'bouc_wen_driver', 'bouc_wen_length_travel', 'bouc_wen_pressure_travel',
+                    'sensor_offset', 'sensor_gain_error')
 
 #: No extension: the paper's model.
 NO_EXTENSIONS = Effects()

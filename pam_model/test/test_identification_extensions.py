@@ -97,8 +97,8 @@ def test_the_friction_refit_with_the_loop_in_the_model_does_not_absorb_it(plant)
     plan = CampaignPlan(lock_angles=(), free_duration=30.0, seed=3)
     runs = campaign(plant, plan, HYSTERESIS)
     loop = (HYSTERESIS.hysteresis_band, ELEMENTS, HYSTERESIS.hysteresis_travel)
-    _, with_loop, skipped = fit_friction(runs, truth, loop)
-    _, without, skipped_without = fit_friction(runs, truth)
+    _, with_loop, skipped, _ = fit_friction(runs, truth, loop)
+    _, without, skipped_without, _ = fit_friction(runs, truth)
     assert abs(with_loop['mu_s'] / truth.mu_s - 1.0) < 0.03, with_loop
     assert abs(with_loop['mu_p'] / truth.mu_p - 1.0) < 0.15 and not skipped, with_loop
     assert abs(without['mu_s'] / truth.mu_s - 1.0) > 0.05, without

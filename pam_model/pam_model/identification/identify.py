@@ -20,6 +20,7 @@ from .flow_fit import fit_flow
 from .force_fit import fit_forces, intercept_combinations
 from .friction_fit import PARAMETERS as FRICTION_PARAMETERS, fit_friction
 from .hysteresis_fit import fit_hysteresis
+from .loop_fit import fit_friction_and_loop
 from .sensor_fit import corrected, fit_sensors
 from .valve_fit import fit_valve_map
 
@@ -62,8 +63,10 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
 
     extensions: also identify the estimator's extensions where the runs reveal them (sensor
     offsets from the vented holds, first: the other fits then see corrected pressures; the force
-    hysteresis with the force coefficients; the dead volume with the valve areas); each stays 0
-    unless it is seen above its fit's significance. False: the paper's model only."""
+    hysteresis with the force coefficients; the form of a loop the free runs show (none, or a
+    Bouc-Wen loop driven by the length or the pressure) with the friction, chosen on held-out
+    data (loop_fit); the dead volume with the valve areas); each stays 0 unless it is seen above
+    its fit's significance or wins on held-out data. False: the paper's model only."""
     missing, fits = [], []
     changes = {}
     found = {}
@@ -99,11 +102,18 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
         forces = attempt('force coefficients', lambda: fit_forces(records, prior))
     if forces:
         changes.update(forces[0])
-        friction = attempt('friction', lambda: fit_friction(records, prior.replace(**changes),
-                                                            hysteresis))
+        forced = prior.replace(**changes)
+        if extensions:
+            friction = attempt('friction and the loop form',
+                               lambda: fit_friction_and_loop(records, forced, hysteresis))
+        else:
+            friction = attempt('friction', lambda: fit_friction(records, forced, hysteresis))
         if friction:
             changes.update(friction[0])
             missing.extend(friction[1])
+        if friction and extensions:
+            fits.append(friction[2])
+            found.update(friction[3].effects())
     else:
         missing.append(NotIdentifiable('mu_s and mu_p need the force coefficients identified '
                                        'first (the friction fit compares angles the forces set)',
@@ -138,6 +148,7 @@ def _format_value(value: float) -> str:
 
 
 EXTENSION_NAMES = ('valve_time_constant', 'dead_volume', 'hysteresis_band', 'hysteresis_travel',
+                   'bouc_wen_band', 'bouc_wen_length_travel', 'bouc_wen_pressure_travel',
                    'sensor_offset', 'sensor_gain_error')
 
 
@@ -149,6 +160,9 @@ def true_value(name: str, truth: Parameters, truth_map: ValveMap | None, prior: 
     if key in EXTENSION_NAMES:
         effects = truth_effects if truth_effects is not None else NO_EXTENSIONS
         if key == 'hysteresis_travel' and not effects.hysteresis_band:
+            return math.nan
+        if key.startswith('bouc_wen_') and key.endswith('_travel') and (
+                not effects.bouc_wen_band or key != f'bouc_wen_{effects.bouc_wen_driver}_travel'):
             return math.nan
         value = getattr(effects, key)
         return float(value[int(sensor) - 1]) if sensor else float(value)
@@ -170,7 +184,7 @@ def format_report(ident: Identification, prior: Parameters, truth: Parameters | 
                   truth_map: ValveMap | None = None, truth_effects: Effects | None = None) -> str:
     """The estimates of every fit (prior, identified +- 1 sigma, and the truth when known: the
     plant's parameters, valve map and unmodelled effects), then the extensions kept."""
-    head = f'{"quantity":<24}{"unit":<9}{"prior":>11}{"identified":>12}{"+- 1 sigma":>12}'
+    head = f'{"quantity":<26}{"unit":<9}{"prior":>11}{"identified":>12}{"+- 1 sigma":>12}'
     if truth is not None:
         head += f'{"true":>12}{"error":>9}'
     lines = []
@@ -180,7 +194,7 @@ def format_report(ident: Identification, prior: Parameters, truth: Parameters | 
                   f'[{fit.group}] from {fit.samples} settled holds' if fit.samples else
                   f'[{fit.group}]', head]
         for e in fit.estimates:
-            row = (f'{e.name:<24}{e.unit:<9}{_format_value(e.prior)} {_format_value(e.value)} '
+            row = (f'{e.name:<26}{e.unit:<9}{_format_value(e.prior)} {_format_value(e.value)} '
                    f'{_format_value(e.std)}')
             if truth is not None:
                 true = true_value(e.name, truth, truth_map, prior, truth_effects)
@@ -193,7 +207,7 @@ def format_report(ident: Identification, prior: Parameters, truth: Parameters | 
         lines += [f'  note: {n}' for n in fit.notes]
     if ident.missing:
         lines += ['', 'NOT identified (prior values kept):', describe_missing(ident.missing)]
-    if any(f.group in ('sensors', 'hysteresis') for f in ident.fits):
+    if any(f.group in ('sensors', 'hysteresis', 'hysteresis form') for f in ident.fits):
         lines += ['', f'extensions kept (extensions.yaml): {ident.extensions.describe()}']
     return '\n'.join(lines).lstrip('\n')
 
@@ -215,17 +229,17 @@ def expected_fits(model, runs, extensions: bool = True) -> Identification:
 def format_plan(ident: Identification) -> str:
     """expected_fits' result as a table: each identified quantity's prior value, expected 1-sigma
     and its size relative to the value, then what the campaign leaves unidentified."""
-    lines = [f'{"quantity":<24}{"unit":<9}{"prior":>11}{"expected 1 sigma":>18}{"relative":>10}']
+    lines = [f'{"quantity":<26}{"unit":<9}{"prior":>11}{"expected 1 sigma":>18}{"relative":>10}']
     for fit in ident.fits:
         lines.append(f'{fit.group}:')
         for e in fit.estimates:
             if not math.isfinite(e.std):
-                lines.append(f'  {e.name:<22}{e.unit:<9}{_format_value(e.prior)}'
+                lines.append(f'  {e.name:<24}{e.unit:<9}{_format_value(e.prior)}'
                              f'{"-":>18}{"":>10}  {e.note}')
                 continue
             relative = abs(e.std / e.prior) if e.prior else math.inf
             text = f'{100.0 * relative:9.3g}%' if math.isfinite(relative) else f'{"-":>10}'
-            lines.append(f'  {e.name:<22}{e.unit:<9}{_format_value(e.prior)}'
+            lines.append(f'  {e.name:<24}{e.unit:<9}{_format_value(e.prior)}'
                          f'{e.std:18.4g}{text}')
     if ident.missing:
         lines.append('not identifiable with this campaign (kept at the prior):')

@@ -63,6 +63,12 @@ class CalibrationRecord:
         return CalibrationRecord(self.source, self.t[k:], self.u[k:], self.psi[k:],
                                  self.psi_dot[k:], self.P[k:], self.tau[k:], self.locked)
 
+    def between(self, k0: int, k1: int) -> CalibrationRecord:
+        """The record of samples k0..k1-1 (RecordError if fewer than 100)."""
+        return CalibrationRecord(self.source, self.t[k0:k1], self.u[k0:k1], self.psi[k0:k1],
+                                 self.psi_dot[k0:k1], self.P[k0:k1], self.tau[k0:k1],
+                                 self.locked)
+
     @property
     def dt(self) -> np.ndarray:
         """(N-1,) s, the step from each sample to the next."""
