@@ -63,6 +63,7 @@
 
 static avr_t *avr;
 static volatile sig_atomic_t stop;
+static uint64_t wall_start;             /* wall time (ns) of simulated ms 0; moves with dropped lag */
 
 static uint64_t now_ns(void)
 {
@@ -162,6 +163,19 @@ static void uart_flush(void)
 }
 
 static uint64_t next_rx_cycle;
+/* The board's clock is the wall clock (the simulation is paced to it): bytes the host wrote while
+ * the simulation lagged behind must not reach the board before the simulated time at which they
+ * were written, or a lag caught up would compress them into a burst at the line rate that the
+ * host never sent. They were written after the previous read of the pty: in_cycle is the
+ * simulated cycle of that read's wall time (the earliest they can have been written), before
+ * which they are not fed. On time (the simulation ahead of the wall clock) it is in the past. */
+static uint64_t in_cycle, last_read_ns;
+static uint64_t wall_cycle(uint64_t ns)
+{
+    uint64_t t = ns > wall_start ? ns - wall_start : 0;
+    return t / 1000000ull * CYCLES_PER_MS + t % 1000000ull * CYCLES_PER_MS / 1000000ull;
+}
+
 static void uart_read(void)             /* every 250 simulated us */
 {
     if (pty_master < 0 || in_pos != in_len)
@@ -169,13 +183,16 @@ static void uart_read(void)             /* every 250 simulated us */
     ssize_t n = read(pty_master, in_buf, sizeof in_buf);
     in_pos = 0;
     in_len = n > 0 ? (size_t)n : 0;
+    if (in_len)
+        in_cycle = wall_cycle(last_read_ns);
+    last_read_ns = now_ns();
 }
 
 static void uart_feed(void)
 {
     /* one byte per byte time of the 1 Mbaud line (simavr's FIFO drains at its own 11-bit rate:
      * the pacing here keeps it from overflowing) */
-    while (in_pos < in_len && avr->cycle >= next_rx_cycle) {
+    while (in_pos < in_len && avr->cycle >= next_rx_cycle && avr->cycle >= in_cycle) {
         uint8_t byte = in_buf[in_pos++];
         avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT), byte);
         st.rx_bytes++;
@@ -602,7 +619,8 @@ int main(int argc, char **argv)
      * periods busier than MIN, per address (a developer's tool: avr-nm maps them) */
     uint64_t profile_min = getenv("PAM_BOARD_SIM_PROFILE_MIN") ?
         (uint64_t)atoll(getenv("PAM_BOARD_SIM_PROFILE_MIN")) : 0;
-    uint64_t start = now_ns(), next_status = 0;   /* wall time of simulated ms 0 */
+    uint64_t next_status = 0;
+    wall_start = last_read_ns = now_ns();
     uint64_t vec_count[2] = {0, 0};
     uint64_t last_pc0 = 0, tick_c0 = 0, tick_slept0 = 0, tick_n = 0;
     int rc = 0;
@@ -676,7 +694,7 @@ int main(int argc, char **argv)
         if (duration > 0 && st.ms >= (uint64_t)(duration * 1000))
             break;
         /* pace to the wall clock */
-        uint64_t due = start + st.ms * 1000000ull, now = now_ns();
+        uint64_t due = wall_start + st.ms * 1000000ull, now = now_ns();
         if (now < due) {
             struct timespec t = {(time_t)(due / 1000000000ull), (long)(due % 1000000000ull)};
             clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &t, NULL);
@@ -688,7 +706,7 @@ int main(int argc, char **argv)
              * process), the lag is dropped rather than caught up in a burst of samples */
             if (now - due > MAX_LAG_NS) {
                 st.dropped_lag_ms += (now - due) / 1000000ull;
-                start += now - due;
+                wall_start += now - due;
             }
         }
     }

@@ -183,7 +183,7 @@ def simulated_angles(inputs, params, hysteresis, loop: Loop) -> np.ndarray:
 
 
 def fit_friction(records, params, hysteresis=(0.0, 1, 1.0), driver: str | None = None,
-                 strict: bool = True) -> tuple[GroupFit, dict, list, Loop]:
+                 strict: bool = True, fixed: Loop = NO_LOOP) -> tuple[GroupFit, dict, list, Loop]:
     """mu_s, mu_p from the free runs, with `params` holding the identified forces; with `driver`
     ('length' or 'pressure') also a Bouc-Wen loop so driven (its band B_w, signed, and travel).
 
@@ -193,7 +193,8 @@ def fit_friction(records, params, hysteresis=(0.0, 1, 1.0), driver: str | None =
     as not identified. hysteresis: (B N at 500 kPa, elements n, travel Delta N) of the
     identified force hysteresis in the model joint (B = 0: none), so that the friction does not
     absorb the loop. strict=False: no identifiability checks (both coefficients fitted; for a
-    fit judged on runs it did not see, loop_fit).
+    fit judged on runs it did not see, loop_fit). fixed: a Bouc-Wen loop already identified (the
+    locked runs'), in the model joint without a driver; returned as the Loop then.
     """
     used = free_runs(records)
     inputs = [(r, filtered_pressures(r)) for r in used]
@@ -207,7 +208,7 @@ def fit_friction(records, params, hysteresis=(0.0, 1, 1.0), driver: str | None =
         log_factors[fitted] = z[:len(fitted)]
         mu_s, mu_p = prior * np.exp(log_factors)
         if driver is None or len(z) == len(fitted):     # the start grid of the coefficients
-            return params.replace(mu_s=float(mu_s), mu_p=float(mu_p)), NO_LOOP
+            return params.replace(mu_s=float(mu_s), mu_p=float(mu_p)), fixed
         loop = Loop(float(z[len(fitted)]), driver, float(np.exp(z[len(fitted) + 1])))
         return params.replace(mu_s=float(mu_s), mu_p=float(mu_p)), loop
 
@@ -268,7 +269,8 @@ def fit_friction(records, params, hysteresis=(0.0, 1, 1.0), driver: str | None =
     notes = (f'{len(used)} free runs, pressures low-passed at {PRESSURE_FILTER_HZ:g} Hz'
              + (f'; with the identified force hysteresis (B {hysteresis[0]:.3g} N, Delta '
                 f'{hysteresis[2]:.3g} N)' if hysteresis[0] > 0.0 else '')
-             + (f'; with a Bouc-Wen loop driven by the {driver} (B_w {loop.band:+.3g} N, travel '
-                f'{loop.travel:.3g} {LOOP_UNITS[driver]})' if driver is not None else ''),)
+             + (f'; with a Bouc-Wen loop driven by the {loop.driver} (B_w {loop.band:+.3g} N, '
+                f'travel {loop.travel:.3g} {LOOP_UNITS[loop.driver]})' if loop.band else '')
+             + ('' if driver is not None or not loop.band else ', identified before, fixed'),)
     return (GroupFit('friction', estimates, float(np.sqrt(np.mean(sol.fun ** 2))), 'deg',
                      len(measured), notes), {e.name: e.value for e in friction}, skipped, loop)

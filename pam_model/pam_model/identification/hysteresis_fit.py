@@ -32,12 +32,19 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import butter, sosfiltfilt
 
 from ..effects import HYSTERESIS_PRESSURE
+from ..effects_physics import bouc_wen_advance
 from ..physics_vectorised import muscle_forces
 from .fit_result import Estimate, GroupFit, standard_errors
 from .force_fit import fit_forces, regressors, usable_records
 
 PRESSURE_FILTER_HZ = 5.0                  # Hz, low-pass of the pressures driving the model loop
 TRAVELS = np.geomspace(0.5, 40.0, 19)     # N, grid of the travel Delta
+#: the loop forms a locked run can show, and the grid of each one's travel: the Maxwell slip
+#: driven by the nominal force (N), a Bouc-Wen loop driven by the pressure (Pa; signed band)
+LOCKED_FORMS = ('maxwell', 'pressure')
+FORM_TRAVELS = {'maxwell': TRAVELS, 'pressure': np.geomspace(2e3, 2e5, 19)}
+FORM_NAMES = {'maxwell': 'Maxwell slip driven by the nominal force',
+              'pressure': 'Bouc-Wen loop driven by the pressure'}
 ITERATIONS = 2                            # passes of (nominal forces, joint fit)
 SIGNIFICANCE = 3.0                        # a loop is seen when B > this many sigma
 #: N, and B > this (the statistical sigma misses the model bias; on the 'mild' plant, with no
@@ -79,6 +86,20 @@ def slip_response(s, P, n, travel, p_out, out):
     return out
 
 
+@njit(cache=True)
+def pressure_loop_response(P, travel, p_out, out):
+    """out[k] (N): the Bouc-Wen force of ONE muscle with a 1 N band at 500 kPa driven by its
+    pressure P (N,) Pa abs over travel (Pa), z starting at 0 (as BoucWen's first update)."""
+    z = 0.0
+    before = P[0] / travel
+    for k in range(P.shape[0]):
+        x = P[k] / travel
+        z = bouc_wen_advance(z, x - before)
+        before = x
+        out[k] = max(P[k] - p_out, 0.0) / (HYSTERESIS_PRESSURE - p_out) * z
+    return out
+
+
 def low_passed(rec, cutoff_hz: float = PRESSURE_FILTER_HZ) -> np.ndarray:
     """(N, 2) Pa: a record's pressures low-passed at cutoff_hz, zero phase."""
     fs = 1.0 / float(np.median(rec.dt))
@@ -93,15 +114,20 @@ def nominal_forces(used, params, pressures) -> list:
             for r, P in zip(used, pressures, strict=True)]
 
 
-def unit_loops(used, forces, pressures, travel: float, elements: int, p_out: float, r: float):
-    """(N,) N m: the torque r cos(psi) (h_1 - h_2) of a 1 N band over all used records."""
+def unit_loops(used, forces, pressures, travel: float, elements: int, p_out: float, r: float,
+               form: str = 'maxwell'):
+    """(N,) N m: the torque r cos(psi) (h_1 - h_2) of a 1 N band of `form` over all used
+    records (travel in N for the Maxwell slip, Pa for the pressure's Bouc-Wen loop)."""
     parts = []
     for rec, F, P in zip(used, forces, pressures, strict=True):
         h = []
         for i in range(2):
             out = np.empty(len(rec.t))
-            slip_response(F[i], np.ascontiguousarray(P[:, i]), elements, float(travel), p_out,
-                          out)
+            if form == 'maxwell':
+                slip_response(F[i], np.ascontiguousarray(P[:, i]), elements, float(travel),
+                              p_out, out)
+            else:
+                pressure_loop_response(np.ascontiguousarray(P[:, i]), float(travel), p_out, out)
             h.append(out)
         parts.append(r * np.cos(rec.psi) * (h[0] - h[1]))
     return np.concatenate(parts)
@@ -128,11 +154,16 @@ class LinearTorqueFit:
         return float(self.tt - 2.0 * theta @ b + theta @ M @ theta), float(theta[-1] / c_scale)
 
 
-def fit_hysteresis(records, prior, elements: int):
-    """(force GroupFit, force changes, hysteresis GroupFit, (B N, Delta N)).
+def fit_hysteresis(records, prior, elements: int, form: str = 'maxwell'):
+    """(force GroupFit, force changes, hysteresis GroupFit, (B N, Delta N or Pa)).
 
-    (B, Delta) = (0, None) when the loop is not seen (B <= SIGNIFICANCE sigma); the force fit is
-    then the plain one. NotIdentifiable as fit_forces when the locked runs are missing."""
+    form: 'maxwell' (B > 0) or 'pressure' (a Bouc-Wen loop driven by the pressure, B signed).
+    (B, Delta) = (0, None) when the loop is not seen (|B| <= SIGNIFICANCE sigma); the force fit
+    is then the plain one. NotIdentifiable as fit_forces when the locked runs are missing."""
+    travels = FORM_TRAVELS[form]
+    unit = 'N' if form == 'maxwell' else 'Pa'
+    names = (('hysteresis_band', 'hysteresis_travel') if form == 'maxwell' else
+             ('bouc_wen_band', 'bouc_wen_pressure_travel'))
     used = usable_records(records)
     plain_group, plain_changes = fit_forces(records, prior)
     pressures = [low_passed(r) for r in used]
@@ -146,20 +177,21 @@ def fit_hysteresis(records, prior, elements: int):
 
         def cost(log_delta, forces=forces):
             return linear.ssr(unit_loops(used, forces, pressures, math.exp(log_delta), elements,
-                                         p_out, r))[0]
+                                         p_out, r, form))[0]
 
-        costs = [cost(math.log(d)) for d in TRAVELS]
+        costs = [cost(math.log(d)) for d in travels]
         j = int(np.argmin(costs))
-        lo, hi = math.log(TRAVELS[max(j - 1, 0)]), math.log(TRAVELS[min(j + 1, len(TRAVELS) - 1)])
+        lo, hi = math.log(travels[max(j - 1, 0)]), math.log(travels[min(j + 1, len(travels) - 1)])
         best = minimize_scalar(cost, bounds=(lo, hi), method='bounded', options={'xatol': 1e-3})
         travel = math.exp(best.x)
-        column = unit_loops(used, forces, pressures, travel, elements, p_out, r)
+        column = unit_loops(used, forces, pressures, travel, elements, p_out, r, form)
         group, changes, (band, _) = fit_forces(records, prior, extra_column=column)
     # uncertainties of the joint fit: the linear columns, B's, and Delta's (log) derivative
     step = 1e-3
-    d_column = (unit_loops(used, forces, pressures, travel * math.exp(step), elements, p_out, r)
+    d_column = (unit_loops(used, forces, pressures, travel * math.exp(step), elements, p_out, r,
+                           form)
                 - unit_loops(used, forces, pressures, travel * math.exp(-step), elements, p_out,
-                             r)) / (2.0 * step)
+                             r, form)) / (2.0 * step)
     jac = np.column_stack([A, column, band * d_column])
     theta = np.linalg.lstsq(jac[:, :-1], tau, rcond=None)[0]
     residual = jac[:, :-1] @ theta - tau
@@ -167,11 +199,15 @@ def fit_hysteresis(records, prior, elements: int):
     std = standard_errors(jac / col_scale, residual, correlated=True) / col_scale
     band_std, log_travel_std = float(std[-2]), float(std[-1])
     travel_std = travel * log_travel_std
-    seen = band > max(SIGNIFICANCE * band_std, MIN_BAND)
-    estimates = (Estimate('hysteresis_band', float(band), band_std, 0.0, 'N'),
-                 Estimate('hysteresis_travel', float(travel), travel_std, 0.0, 'N'))
+    size = band if form == 'maxwell' else abs(band)
+    seen = size > max(SIGNIFICANCE * band_std, MIN_BAND)
+    estimates = (Estimate(names[0], float(band), band_std, 0.0, 'N'),
+                 Estimate(names[1], float(travel), travel_std, 0.0, unit))
     notes = [f'Maxwell slip, {elements} elements, driven by the nominal forces of the pressures '
-             f'low-passed at {PRESSURE_FILTER_HZ:g} Hz; band B at 500 kPa (half-width of the loop)']
+             f'low-passed at {PRESSURE_FILTER_HZ:g} Hz; band B at 500 kPa (half-width of the loop)'
+             if form == 'maxwell' else
+             f'Bouc-Wen loop driven by the pressures low-passed at {PRESSURE_FILTER_HZ:g} Hz; '
+             'band B_w at 500 kPa, signed (its orientation)']
     if not seen:
         notes.append(f'loop not seen (B {band:.3g} N, sigma {band_std:.2g} N: not above '
                      f'{SIGNIFICANCE:g} sigma and {MIN_BAND:g} N): B kept 0, force coefficients '

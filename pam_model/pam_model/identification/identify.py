@@ -18,9 +18,8 @@ from ..valve_map import ValveMap
 from .fit_result import Estimate, GroupFit, NotIdentifiable
 from .flow_fit import fit_flow
 from .force_fit import fit_forces, intercept_combinations
-from .friction_fit import PARAMETERS as FRICTION_PARAMETERS, fit_friction
-from .hysteresis_fit import fit_hysteresis
-from .loop_fit import fit_friction_and_loop
+from .friction_fit import NO_LOOP, PARAMETERS as FRICTION_PARAMETERS, Loop, fit_friction
+from .loop_fit import fit_forces_and_loop, fit_friction_and_loop
 from .sensor_fit import corrected, fit_sensors
 from .valve_fit import fit_valve_map
 
@@ -85,19 +84,23 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
 
     elements = NO_EXTENSIONS.hysteresis_elements
     hysteresis = (0.0, elements, NO_EXTENSIONS.hysteresis_travel)
+    fixed = NO_LOOP                  # a Bouc-Wen loop the locked runs chose
     if extensions:
         sensors = attempt('sensor offsets', lambda: fit_sensors(records, prior))
         if any(sensors[0]):
             found['sensor_offset'] = sensors[0]
             records = corrected(records, *sensors)
-        forces = attempt('force coefficients and hysteresis',
-                         lambda: fit_hysteresis(records, prior, elements))
+        forces = attempt('force coefficients and the loop form',
+                         lambda: fit_forces_and_loop(records, prior, elements))
         if forces:
             fits.append(forces[1])
-            band, travel = forces[2]
-            if band > 0.0:
+            form, band, travel = forces[2]
+            if form == 'maxwell':
                 found.update(hysteresis_band=band, hysteresis_travel=travel)
                 hysteresis = (band, elements, travel)
+            elif form == 'pressure':
+                fixed = Loop(band, 'pressure', travel)
+                found.update(fixed.effects())
     else:
         forces = attempt('force coefficients', lambda: fit_forces(records, prior))
     if forces:
@@ -105,7 +108,7 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
         forced = prior.replace(**changes)
         if extensions:
             friction = attempt('friction and the loop form',
-                               lambda: fit_friction_and_loop(records, forced, hysteresis))
+                               lambda: fit_friction_and_loop(records, forced, hysteresis, fixed))
         else:
             friction = attempt('friction', lambda: fit_friction(records, forced, hysteresis))
         if friction:
@@ -113,7 +116,8 @@ def identify(records, prior: Parameters, prior_map: ValveMap, partial: bool = Fa
             missing.extend(friction[1])
         if friction and extensions:
             fits.append(friction[2])
-            found.update(friction[3].effects())
+            found.update(friction[3].effects())      # the fixed loop's again, or the free runs'
+
     else:
         missing.append(NotIdentifiable('mu_s and mu_p need the force coefficients identified '
                                        'first (the friction fit compares angles the forces set)',
