@@ -406,10 +406,10 @@ class PamUkf:
     extensions: the model's extensions (pam_model.model_extensions; docs/model_extensions.md),
     the paper's model by default (NO_EXTENSIONS: the same numbers as before, bit for bit):
     valve lag of the known commands (pam_model.effects.ValveLag), dead volume V_d in eq. (4),
-    Maxwell-slip force hysteresis driven by the posterior's eq. (6) forces and a Bouc-Wen loop
-    driven by the posterior's muscle lengths or pressures (pam_model.effects.BoucWen), their
-    forces held over the next step (the same for every sigma point; in the outputs), sensor
-    offset o and gain error g: the
+    Maxwell-slip force hysteresis driven by the posterior's eq. (6) forces and held over the next
+    step (the same for every sigma point), a Bouc-Wen loop (pam_model.effects.BoucWen) whose
+    memory follows the posterior's muscle lengths or pressures and whose force each sigma point
+    takes at its own driver (both in the outputs), sensor offset o and gain error g: the
     reading y becomes (y - o) / (1 + g) before the update (the range check is on y).
     bias_states: None (the default: the 4-state filter, unchanged) or a bias_ukf.BiasStates: the
     state grows to [psi, psi_dot, P1, P2, b1, b2, b_tau] with random-walk sensor offsets b1, b2
