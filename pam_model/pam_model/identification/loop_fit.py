@@ -104,20 +104,11 @@ def fit_forces_and_loop(records, prior, elements: int):
     loop as (form or None, B, travel))."""
     forms = (None, *LOCKED_FORMS)
     scores = {form: held_out_torque(records, prior, elements, form) for form in forms}
-    plain = scores[None]
-    best = min(scores, key=scores.get)
-    if len(usable_records(records)) < 2 or not np.isfinite(plain):
+    if len(usable_records(records)) < 2 or not np.isfinite(scores[None]):
         best, why = 'maxwell', ('no held-out choice (too few lock angles to leave one out): '
                                 'the Maxwell slip, kept by its significance')
-    elif best is None:
-        why = 'no loop form fits the run left out better'
-    elif 1.0 - scores[best] / plain < MARGIN:
-        why = (f'the best loop ({locked_form_name(best)}) lowers the held-out RMS by only '
-               f'{100 * (1.0 - scores[best] / plain):.1f} % (< {100 * MARGIN:g} %)')
-        best = None
     else:
-        why = (f'lowest held-out RMS, {100 * (1.0 - scores[best] / plain):.0f} % below no loop '
-               f'(>= {100 * MARGIN:g} % needed)')
+        best, why = choose(scores, locked_form_name)
     if best is None:
         group, changes = fit_forces(records, prior)
         loop = GroupFit('hysteresis', (Estimate('hysteresis_band', 0.0, float('nan'), 0.0, 'N',
@@ -164,15 +155,16 @@ def held_out_rms(runs, params, hysteresis, driver: str | None, fixed: Loop = NO_
     return float(np.sqrt(squares / count))
 
 
-def choose(scores: dict) -> tuple[str | None, str]:
-    """(the winning driver, why) from {driver: held-out RMS (deg)}."""
+def choose(scores: dict, name=form_name) -> tuple[str | None, str]:
+    """(the winning form, why) from {form: held-out RMS} (None: no loop), the free runs' and
+    the locked runs' rule alike; name(form) names a form in the why."""
     best = min(scores, key=scores.get)
     plain = scores[None]
     if best is None:
-        return None, 'no loop form fits the held-out half better'
+        return None, 'no loop form fits the held-out data better'
     gain = 1.0 - scores[best] / plain if plain > 0.0 else 0.0
     if gain < MARGIN:
-        return None, (f'the best loop ({form_name(best)}) lowers the held-out RMS by only '
+        return None, (f'the best loop ({name(best)}) lowers the held-out RMS by only '
                       f'{100 * gain:.1f} % (< {100 * MARGIN:g} %)')
     return best, (f'lowest held-out RMS, {100 * gain:.0f} % below the form without a loop '
                   f'(>= {100 * MARGIN:g} % needed)')

@@ -58,10 +58,7 @@ class CalibrationRecord:
 
     def since(self, k: int) -> CalibrationRecord:
         """The record from sample k on (RecordError if too few samples remain)."""
-        if k == 0:
-            return self
-        return CalibrationRecord(self.source, self.t[k:], self.u[k:], self.psi[k:],
-                                 self.psi_dot[k:], self.P[k:], self.tau[k:], self.locked)
+        return self if k == 0 else self.between(k, len(self.t))
 
     def between(self, k0: int, k1: int) -> CalibrationRecord:
         """The record of samples k0..k1-1 (RecordError if fewer than 100)."""
