@@ -63,7 +63,8 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('stream_timeout', 0.2, 'double', 's',
               'No sample for this long -> the device is lost: reconnect.', range=(0.01, 10.0)),
     ParamSpec('heartbeat_period', 0.05, 'double', 's',
-              'Period of the HEARTBEAT frames to the device.', range=(0.005, 1.0)),
+              'A HEARTBEAT to the device after this long without a frame to it (any frame '
+              "feeds the device's watchdog).", range=(0.005, 1.0)),
     ParamSpec('reconnect_backoff', [0.1, 2.0], 'double[]', 's',
               'Reconnect delays [first, max]: doubled after each failed attempt.'),
     ParamSpec('frame_id', 'pam_joint', 'string', '', 'frame_id of the published headers.'),

@@ -155,16 +155,19 @@ class DriverNode(LinkedNode):
         self._session.start()
 
     # ------------------------------------------------------------------ output
-    def _apply(self, action: Action) -> bool:
+    def _apply(self, action: Action, paced: bool = False) -> bool:
         """Write the action's output to the valves and publish ~/applied_command if it changed;
         False if there was nothing to write or no device to write it to (or the write failed).
-        The caller holds self._lock (the decision and its COMMAND frame are one step)."""
+        paced: the loop's command, at most one COMMAND frame per SAMPLE (SerialSession); every
+        other output (safe, shutdown, connect) goes at once. The caller holds self._lock (the
+        decision and its COMMAND frame are one step)."""
         if action.device_arm:       # before the output: the board applies the next COMMAND
             self._session.send_arm()
         if action.output is None:
             return False
         u1, u2 = action.output
-        sent = self._session.send_command(self.cal.dac_counts(u1), self.cal.dac_counts(u2))
+        sent = self._session.send_command(self.cal.dac_counts(u1), self.cal.dac_counts(u2),
+                                          paced)
         if action.changed:
             msg = ValveCommand()
             msg.header.stamp = self.get_clock().now().to_msg()
@@ -176,12 +179,12 @@ class DriverNode(LinkedNode):
                 pass
         return sent
 
-    def _decide(self, event: Callable[[], Action]) -> Action:
-        """One event through the core: decided and its output written under self._lock, then
-        its lines logged (outside the lock)."""
+    def _decide(self, event: Callable[[], Action], paced: bool = False) -> Action:
+        """One event through the core: decided and its output written under self._lock (paced:
+        see _apply), then its lines logged (outside the lock)."""
         with self._lock:
             action = event()
-            self._apply(action)
+            self._apply(action, paced)
         # one call site per severity: rclpy refuses two severities from one line of code
         logger = self.get_logger()
         for log in action.logs:
@@ -215,7 +218,8 @@ class DriverNode(LinkedNode):
     # ------------------------------------------------------------------ ROS callbacks
     def _on_command(self, msg: ValveCommand) -> None:
         self._timing.on_command(stamp_ns(msg.header.stamp), time.time_ns())
-        action = self._decide(lambda: self._core.on_command(msg.u1, msg.u2, time.monotonic()))
+        action = self._decide(lambda: self._core.on_command(msg.u1, msg.u2, time.monotonic()),
+                              paced=True)
         inject = self.config.inject_internal_error
         if action.ok and self._session.inject_at is None and inject > 0.0:
             self._session.inject_at = time.monotonic() + inject

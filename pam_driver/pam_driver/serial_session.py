@@ -2,11 +2,22 @@
 
 SerialSession owns the port and the reader thread: open the port for exclusive use, HELLO and
 wait for HELLO_ACK (handshake_timeout s), check the device (the same protocol major version, a
-sample rate above 0), stream (SAMPLE and DEVICE_HEARTBEAT frames, a HEARTBEAT every
-heartbeat_period s, the device lost after stream_timeout s without a sample), and reconnect
-after reconnect_backoff[0] s, doubled after each failure up to reconnect_backoff[1] s. It counts
+sample rate above 0), stream (SAMPLE and DEVICE_HEARTBEAT frames, a HEARTBEAT after
+heartbeat_period s without a frame to the device, the device lost after stream_timeout s
+without a sample), and reconnect after reconnect_backoff[0] s, doubled after each failure up to
+reconnect_backoff[1] s. It counts
 what the link did (CRC errors, garbage bytes, lost frames, protocol errors, handshake failures,
 board vents) and numbers the samples from the device's tick (TickCounter).
+
+The line carries at most one of the loop's COMMAND frames per read of SAMPLE frames, the
+newest output (send_command(..., paced=True)): a command given when one has already gone since
+the last SAMPLE is kept, a newer one replaces it, and it goes when it has waited a whole sample
+slot without being replaced. A 1 kHz loop gives one command per sample, so in steady state every
+command goes at once; a host that fell behind (its commands queued during a stall, two SAMPLEs
+read at once) sends the board one frame a period, not a burst at the line rate that an 8-bit
+board spends its period receiving. Safety outputs (the safe output, a shutdown)
+go at once and drop a waiting command. A HEARTBEAT goes only when no frame went for
+heartbeat_period: any valid host frame feeds the board's watchdog.
 
 Every decision about the valves stays with the node's DriverCore: the session hands each event
 to its SessionEvents (the node), from the reader thread, and writes the frames it is given
@@ -98,6 +109,10 @@ class SerialSession:
         self._lock = threading.Lock()         # the counters
         self._serial = None
         self._tx_seq = 0
+        self._last_write = -math.inf          # monotonic time of the last frame written
+        self._slot_used = False               # a paced COMMAND went since the last SAMPLE
+        self._waiting: tuple[int, int] | None = None   # a paced COMMAND kept for later
+        self._waiting_old = False             # ... and it already waited one whole slot
         self._decoder = proto.Decoder()
         self._rx_seq = proto.SequenceTracker()
         self._ticks = proto.TickCounter()
@@ -112,6 +127,7 @@ class SerialSession:
         self.handshake_failures = 0
         self.protocol_errors = 0
         self.samples = 0
+        self.commands_superseded = 0          # paced commands replaced before they went
         self.incompatible = ''                # why the device was refused ('' when not)
         self.last_error = ''
 
@@ -135,23 +151,59 @@ class SerialSession:
         """Write the frame build(seq) with the next sequence number; False if there is no port
         or the write failed (the reader thread notices and reconnects)."""
         with self._io_lock:
-            ser = self._serial
-            if ser is None:
-                return False
-            seq = self._tx_seq
-            self._tx_seq = (self._tx_seq + 1) & 0xFFFF
-            try:
-                ser.write(build(seq))
-                return True
-            except Exception as exc:  # noqa: BLE001 - the reader thread notices and reconnects
-                self.last_error = f'write failed: {type(exc).__name__}: {exc}'
-                return False
+            return self._write(build)
 
-    def send_command(self, dac1: int, dac2: int) -> bool:
-        return self._send(lambda seq: proto.command(seq, dac1, dac2))
+    def _write(self, build) -> bool:
+        """_send's body; the caller holds self._io_lock."""
+        ser = self._serial
+        if ser is None:
+            return False
+        seq = self._tx_seq
+        self._tx_seq = (self._tx_seq + 1) & 0xFFFF
+        try:
+            ser.write(build(seq))
+        except Exception as exc:  # noqa: BLE001 - the reader thread notices and reconnects
+            self.last_error = f'write failed: {type(exc).__name__}: {exc}'
+            return False
+        self._last_write = time.monotonic()
+        return True
+
+    def send_command(self, dac1: int, dac2: int, paced: bool = False) -> bool:
+        """A COMMAND frame with the DAC counts. paced (the loop's commands): at once if no paced
+        COMMAND went since the last SAMPLE, else kept for later (replacing one kept before).
+        Not paced (safety outputs): at once, and a kept command is dropped. False if there is no
+        port or the write failed."""
+        with self._io_lock:
+            if self._serial is None:
+                return False
+            if self._waiting is not None:
+                with self._lock:
+                    self.commands_superseded += 1
+            if paced and self._slot_used:
+                self._waiting, self._waiting_old = (dac1, dac2), False
+                return True
+            self._waiting = None
+            self._slot_used = self._slot_used or paced
+            return self._write(lambda seq: proto.command(seq, dac1, dac2))
 
     def send_arm(self) -> bool:
         return self._send(proto.arm)
+
+    def _next_slot(self) -> None:
+        """The reader read a SAMPLE (the first of a read: samples read together came while the
+        host was late, and their commands would reach the board in one period): a kept command
+        that already waited a whole slot goes now and takes this slot; a younger one waits one
+        more slot for a newer command to replace it (otherwise every command would wait for the
+        next SAMPLE from then on)."""
+        with self._io_lock:
+            waiting = self._waiting
+            if waiting is not None and self._waiting_old:
+                self._waiting = None
+                self._slot_used = True
+                self._write(lambda seq: proto.command(seq, *waiting))
+            else:
+                self._slot_used = False
+                self._waiting_old = waiting is not None
 
     # ------------------------------------------------------------------ the reader thread
     def _run(self) -> None:
@@ -193,6 +245,7 @@ class SerialSession:
         ser.reset_input_buffer()
         with self._io_lock:
             self._serial = ser
+            self._waiting, self._slot_used = None, False
         self._decoder.reset()
         self._rx_seq.reset()
         self._early_frames = []
@@ -232,7 +285,6 @@ class SerialSession:
     def _stream(self) -> None:
         ser = self._serial
         last_sample = time.monotonic()
-        next_heartbeat = last_sample
         early, self._early_frames = self._early_frames, []
         while not self._stop.is_set():
             data = ser.read(max(ser.in_waiting, 1))
@@ -241,10 +293,14 @@ class SerialSession:
                 self.inject_at = math.inf   # once
                 raise InjectedError('injected by the inject_internal_error parameter')
             frames, early = early + (self._decoder.feed(data) if data else []), []
+            slot = True
             for frame in frames:
                 self._rx_seq.update(frame.seq)
                 try:
                     if frame.type == proto.SAMPLE:
+                        if slot:
+                            self._next_slot()
+                            slot = False
                         self._on_sample(proto.parse_sample(frame, self._supply), now)
                         last_sample = now
                     elif frame.type == proto.DEVICE_HEARTBEAT:
@@ -257,10 +313,9 @@ class SerialSession:
                 except proto.ProtocolError:
                     self.count_protocol_error()
             self._events.on_tick(now)
-            if now >= next_heartbeat:
-                if not self._send(proto.heartbeat):
-                    raise DeviceLost(self.last_error or 'write failed')
-                next_heartbeat = now + self.config.heartbeat_period
+            if (now - self._last_write >= self.config.heartbeat_period
+                    and not self._send(proto.heartbeat)):
+                raise DeviceLost(self.last_error or 'write failed')
             if now - last_sample > self.config.stream_timeout:
                 raise DeviceLost(f'no sample for {self.config.stream_timeout * 1e3:g} ms')
 
@@ -287,6 +342,7 @@ class SerialSession:
                 'torque meter fitted': bool(info and info.has_torque),
                 'supply transducer fitted': bool(info and info.has_supply),
                 'samples received': self.samples,
+                'commands superseded': self.commands_superseded,
                 'handshake failures': self.handshake_failures,
                 'device refused': self.incompatible or 'none',
                 'crc errors': d.crc_errors,

@@ -181,3 +181,81 @@ def test_no_port_retries_with_backoff(tmp_path, session_of):
     assert [b for _, b in failed[:3]] == [0.05, 0.1, 0.1]
     assert 'nothing_here' in failed[0][0], failed[0]
     assert events.of('connected') == []
+
+
+def connected_session(emulator, session_of):
+    """A session streaming from a fresh pam-emulator: (session, events, status)."""
+    _, link, status = emulator()
+    events = Recorder()
+    session = session_of(link_config(link), events)
+    assert wait_until(lambda: len(events.numbers) >= 200, 15.0), events.events
+    return session, events, status
+
+
+def commands_at_device(status) -> int:
+    return sum(s['commands'] for s in status().get('sessions', []))
+
+
+def settled(status, expected: list[float]) -> bool:
+    last = status().get('last_command')
+    return last is not None and last == pytest.approx(expected, abs=0.01)
+
+
+def test_paced_commands_go_once_per_sample_the_newest_last(emulator, session_of):
+    """A burst of the loop's commands (a host that stalled and catches up) reaches the board as
+    the first frame at once and the newest at the next SAMPLE: never one frame per command."""
+    session, events, status = connected_session(emulator, session_of)
+    volts = [1.0 + 0.25 * k for k in range(30)]
+    for _ in range(5):      # five bursts: each its own try (a sample may fall inside one)
+        before, samples = commands_at_device(status), len(events.numbers)
+        superseded = session.report_values()['commands superseded']
+        for u in volts:
+            assert session.send_command(CAL.dac_counts(u), CAL.dac_counts(10.0 - u), paced=True)
+        burst_samples = len(events.numbers) - samples
+        assert wait_until(lambda: settled(status, [volts[-1], 10.0 - volts[-1]]), 5.0), status()
+        went = commands_at_device(status) - before
+        # one frame for the slot the burst started in, one per SAMPLE read during the burst,
+        # and the newest after the next SAMPLE; every other command replaced, none lost twice
+        assert went <= 2 + burst_samples, status()
+        assert went + session.report_values()['commands superseded'] - superseded == len(volts)
+        volts.reverse()
+
+
+def test_a_safety_output_goes_at_once_and_drops_a_waiting_command(emulator, session_of):
+    session, events, status = connected_session(emulator, session_of)
+    for _ in range(5):
+        session.send_command(CAL.dac_counts(6.0), CAL.dac_counts(6.0), paced=True)
+        session.send_command(CAL.dac_counts(9.0), CAL.dac_counts(9.0), paced=True)  # waits
+        assert session.send_command(CAL.dac_counts(0.0), CAL.dac_counts(0.0))        # at once
+        assert wait_until(lambda: settled(status, [0.0, 0.0]), 5.0), status()
+        count = len(events.numbers) + 20
+        assert wait_until(lambda n=count: len(events.numbers) > n, 5.0)
+        time.sleep(0.25)             # the status file is rewritten every 0.1 s
+        # the waiting 9 V command was dropped, not written after the safe output
+        assert settled(status, [0.0, 0.0]), status()
+
+
+def test_a_heartbeat_only_when_no_frame_went_for_a_heartbeat_period(emulator, session_of):
+    """Any valid host frame feeds the board's watchdog: while the loop's commands flow the
+    session sends no HEARTBEAT; when they stop it sends one every heartbeat_period."""
+    session, _, status = connected_session(emulator, session_of)
+    period = session.config.heartbeat_period
+
+    def heartbeats() -> int:         # host frames that were neither COMMAND nor HELLO
+        s = status()
+        return s['host_frames'] - commands_at_device(status) - len(s['sessions'])
+
+    gaps, last = 0, time.monotonic()
+    start = None
+    begin = last
+    while (now := time.monotonic()) < begin + 1.5:   # a command every 2 ms for 1.5 s
+        if start is None and now >= begin + 0.3:     # the status file lags up to 0.1 s
+            start, gaps = heartbeats(), 0
+        gaps += now - last >= period           # a gap of this host: a heartbeat may go in it
+        last = now
+        session.send_command(CAL.dac_counts(5.0), CAL.dac_counts(5.0), paced=True)
+        time.sleep(0.002)
+    during = heartbeats() - start              # read while the commands still flowed
+    assert during <= gaps + 1, (during, gaps)
+    time.sleep(1.0)                  # silence: a HEARTBEAT every 50 ms
+    assert heartbeats() - start - during >= 0.5 / period

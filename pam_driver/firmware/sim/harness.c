@@ -621,7 +621,9 @@ int main(int argc, char **argv)
         (uint64_t)atoll(getenv("PAM_BOARD_SIM_PROFILE_MIN")) : 0;
     uint64_t next_status = 0;
     wall_start = last_read_ns = now_ns();
-    uint64_t vec_count[2] = {0, 0};
+    /* PAM_BOARD_SIM_TRACE: a line on stderr per tick period busier than PROFILE_MIN */
+    int trace = getenv("PAM_BOARD_SIM_TRACE") != NULL;
+    uint64_t rx0 = 0, tx0 = 0;
     uint64_t last_pc0 = 0, tick_c0 = 0, tick_slept0 = 0, tick_n = 0;
     int rc = 0;
     while (!stop) {
@@ -637,8 +639,6 @@ int main(int argc, char **argv)
                 rc = 1;
                 break;
             }
-            if (avr->pc == 0x68 || avr->pc == 0x64)
-                vec_count[avr->pc == 0x68]++;
             if (avr->pc == TICK_VECTOR && avr->cycle != tick_c0) {
                 if (tick_c0 && ++tick_n > 100) {        /* after the start-up */
                     uint64_t busy = (avr->cycle - tick_c0) - (slept - tick_slept0);
@@ -648,12 +648,18 @@ int main(int argc, char **argv)
                         st.busy_worst = busy;
                     st.busy_hist[busy / 100 < CYCLES_PER_MS / 100 ? busy / 100 : CYCLES_PER_MS / 100]++;
                     st.over_half += busy > CYCLES_PER_MS / 2;
-                    if (getenv("PAM_BOARD_SIM_TRACE") && busy > profile_min) fprintf(stderr, "tick %llu udre %llu rxc %llu instr %u busy %llu rx %llu tx %llu\n", (unsigned long long)tick_n, (unsigned long long)vec_count[1], (unsigned long long)vec_count[0], n_pcs, (unsigned long long)busy, (unsigned long long)st.rx_bytes, (unsigned long long)st.tx_bytes);
+                    if (trace && busy > profile_min)    /* the period's own bytes each way */
+                        fprintf(stderr, "tick %llu busy %llu rx %llu tx %llu\n",
+                                (unsigned long long)tick_n, (unsigned long long)busy,
+                                (unsigned long long)(st.rx_bytes - rx0),
+                                (unsigned long long)(st.tx_bytes - tx0));
                     if (profile && busy > profile_min && busy < (getenv("PAM_BOARD_SIM_PROFILE_MAX") ? (uint64_t)atoll(getenv("PAM_BOARD_SIM_PROFILE_MAX")) : ~0ull))
                         for (uint32_t k = 0; k < n_pcs; k++)
                             profile[(pcs[k] >> 1) & 0x1FFFF]++;
                 }
                 n_pcs = 0;
+                rx0 = st.rx_bytes;
+                tx0 = st.tx_bytes;
                 tick_c0 = avr->cycle;
                 tick_slept0 = slept;
             }

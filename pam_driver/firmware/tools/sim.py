@@ -101,6 +101,10 @@ class SimBoard:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
+        trace = os.environ.get('PAM_BOARD_SIM_TRACE')   # FILE: the harness's output kept there
+        if trace and not self._out.closed:
+            with open(trace, 'a') as f:
+                f.write(self.output)
         self._out.close()
         return self.status()
 
