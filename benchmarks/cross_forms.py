@@ -7,12 +7,14 @@ Per family, with the installed tools as a lab runs them (realistic_targets.ident
   1. pam-calibration-bags: the calibration campaign exactly as it plans it (its defaults), on the
      simulated plant of that scenario (parameter mismatch, sensor, unmodelled effects), seed
      --campaign-seed;
-  2. pam-identify --partial on those bags (params.yaml, kappa.csv, extensions.yaml);
+  2. pam-identify --partial on those bags (params.yaml, kappa.csv, extensions.yaml, tuning.yaml:
+     the UKF's velocity process noise chosen on the free calibration run);
   3. per profile seed (three by default): the validation profile (--duration s, 130 as the
      paper's) on the plant, free joint and locked, through the UKF as pam-evaluate runs it
      (pam_estimator.evaluation: start state, run_ukf, whole-run metrics) for three estimator
      forms: the nominal model; the identified parameters and valve map without extensions.yaml
-     (the paper's model); the identified model with its extensions.yaml.
+     (the paper's model); the identified model with its extensions.yaml and tuning.yaml (the
+     first two with the default tuning).
 Prints the table estimator form x family, Q angle (free) and Q torque (locked) in % of the
 range, the worst over the seeds; then the WORST cell, over all forms and after identification.
 
@@ -27,7 +29,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from pam_estimator.calibration_runs import identified_tuning
 from pam_estimator.evaluation import measured_and_estimated, run_ukf, start_state
+from pam_estimator.pam_ukf import DEFAULT_TUNING
 from pam_model.metrics import metrics
 from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
@@ -44,17 +48,19 @@ NOMINAL, PAPER, EXTENDED = 'nominal model', "identified, paper's model", 'identi
 FORMS = (NOMINAL, PAPER, EXTENDED)
 
 
-def estimators(nominal: PamModel, identified) -> dict:
-    """{form: (PamModel, extensions)} of the three estimator forms."""
+def estimators(nominal: PamModel, identified, tuning) -> dict:
+    """{form: (PamModel, extensions, UKF tuning)} of the three estimator forms; `tuning`, the
+    one pam-identify chose for its model with extensions (tuning.yaml), goes with that form."""
     model, extensions = identified
-    return {NOMINAL: (nominal, NO_EXTENSIONS), PAPER: (model, NO_EXTENSIONS),
-            EXTENDED: (model, extensions)}
+    return {NOMINAL: (nominal, NO_EXTENSIONS, DEFAULT_TUNING),
+            PAPER: (model, NO_EXTENSIONS, DEFAULT_TUNING),
+            EXTENDED: (model, extensions, tuning)}
 
 
-def ukf_q(run_, model: PamModel, extensions) -> float:
+def ukf_q(run_, model: PamModel, extensions, tuning=DEFAULT_TUNING) -> float:
     """The UKF's whole-run Q (%) over one run, as pam-evaluate computes it (its start state, the
     model in the run's joint mode)."""
-    estimate = run_ukf(run_, replace(model, locked=run_.locked),
+    estimate = run_ukf(run_, replace(model, locked=run_.locked), tuning,
                        x0=start_state(run_, extensions=extensions), extensions=extensions)
     return 100.0 * metrics(*measured_and_estimated(run_, estimate)).Q
 
@@ -68,8 +74,8 @@ def family_cells(scenario, plant: PamModel, forms: dict, seeds, duration: float)
         for locked, key in ((False, 'Q_psi'), (True, 'Q_tau')):
             run_ = simulate(replace(plant, locked=locked), profile.u, REST_STATE,
                             scenario.sensor, seed, effects=scenario.effects)
-            for form, (model, extensions) in forms.items():
-                cells[form][key].append(ukf_q(run_, model, extensions))
+            for form, (model, extensions, tuning) in forms.items():
+                cells[form][key].append(ukf_q(run_, model, extensions, tuning))
     return cells
 
 
@@ -132,8 +138,10 @@ def main():
             print(f'\n== {name}: {scenario.effects.describe()}', flush=True)
             identified = identified_model(out, name, args.campaign_seed)
             plant = PamModel(params=scenario.apply(nominal.params), valve_map=nominal.valve_map)
-            table[name] = family_cells(scenario, plant, estimators(nominal, identified), seeds,
-                                       args.duration)
+            tuning = identified_tuning(out / 'identified')
+            print(f'  UKF process noise of the identified model: {list(tuning.Q)}', flush=True)
+            table[name] = family_cells(scenario, plant, estimators(nominal, identified, tuning),
+                                       seeds, args.duration)
             for form, cells in table[name].items():
                 print(f'  {form:<26} Q angle ' + ' '.join(f'{q:5.2f}' for q in cells['Q_psi'])
                       + ' %   Q torque ' + ' '.join(f'{q:5.2f}' for q in cells['Q_tau'])

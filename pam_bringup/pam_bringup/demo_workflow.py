@@ -100,7 +100,7 @@ def run_params(base: dict, scenario: str, identified: Path | None) -> dict:
     """The stack's parameter file for one run: base (config/bringup.yaml's content) with the
     simulated rig on `scenario`, the real-time knobs on (REALTIME_PRIORITY) and, for the
     identified run, ukf_node on the identified model (params.yaml, kappa.csv, extensions.yaml
-    of pam-identify's output directory: it always writes all three)."""
+    of pam-identify's output directory, and tuning.yaml's process_noise when it is there)."""
     data = json.loads(json.dumps(base))          # a deep copy of plain YAML data
     for node in REALTIME_NODES:
         data.setdefault(f'/pam/{node}', {}).setdefault('ros__parameters', {})[
@@ -149,24 +149,28 @@ def loop_settings(base: dict) -> dict:
 
 
 def demo_models(identified: Path) -> dict:
-    """{run: (estimator model, extensions)}: the nominal Table II model without extensions, and
-    pam-identify's output (params.yaml, kappa.csv, extensions.yaml)."""
-    from pam_estimator.calibration_runs import load_identified
+    """{run: (estimator model, extensions, UKF tuning)}: the nominal Table II model without
+    extensions with the default tuning, and pam-identify's output (params.yaml, kappa.csv,
+    extensions.yaml, tuning.yaml)."""
+    from pam_estimator.calibration_runs import identified_tuning, load_identified
+    from pam_estimator.pam_ukf import DEFAULT_TUNING
     from pam_model.model import PamModel
     from pam_model.model_extensions import NO_EXTENSIONS
     from pam_model.parameters import load_parameters
     from pam_model.valve_map import load_valve_map
     nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
-    return {'nominal': (nominal, NO_EXTENSIONS), 'identified': load_identified(identified)}
+    return {'nominal': (nominal, NO_EXTENSIONS, DEFAULT_TUNING),
+            'identified': (*load_identified(identified), identified_tuning(identified))}
 
 
 def batch_comparison(scenario: str, models: dict, settings: dict, duration: float,
                      seed: int) -> dict:
-    """The models ({run: (PamModel, extensions)}) compared on the batch closed loop with the
-    plant's effects (pam_controller.closed_loop.simulate_closed_loop_with_effects): the plant is
-    the nominal model with the scenario's mismatch, stepped with its effects and read through its
-    sensor; the reference the paper-style angle steps (pam_model.profiles.step_reference_profile,
-    `seed`, `duration` s, the reference's hold); PI, rest state from `settings` (loop_settings).
+    """The models ({run: (PamModel, extensions, UKF tuning)}) compared on the batch closed loop
+    with the plant's effects (pam_controller.closed_loop.simulate_closed_loop_with_effects): the
+    plant is the nominal model with the scenario's mismatch, stepped with its effects and read
+    through its sensor; the reference the paper-style angle steps
+    (pam_model.profiles.step_reference_profile, `seed`, `duration` s, the reference's hold); PI,
+    rest state from `settings` (loop_settings).
     Deterministic: the same arguments give the same figures, whatever the machine's load.
     {run: figures}, each as tracking_report's summary (angle mode, deg, errors against the true
     angle in % of the 40 deg range, settling in s, estimation I / M in deg and Q in %)."""
@@ -185,10 +189,10 @@ def batch_comparison(scenario: str, models: dict, settings: dict, duration: floa
     reference = step_reference_profile('angle', seed, duration, settings['hold'], plant.h).value
     scale = math.degrees(1.0)
     out = {}
-    for run, (model, extensions) in models.items():
+    for run, (model, extensions, tuning) in models.items():
         loop = simulate_closed_loop_with_effects(
             plant, rig.effects, replace(model, locked=plant.locked), reference,
-            settings['gains'], sensor=rig.sensor, mode='angle',
+            settings['gains'], sensor=rig.sensor, tuning=tuning, mode='angle',
             anti_windup=settings['anti_windup'], tracking_time=settings['tracking_time'],
             limits=PiGains(0.0, 0.0, *settings['limits']), x0=settings['x0'], seed=seed,
             extensions=extensions)

@@ -17,6 +17,7 @@ import yaml
 from pam_bringup.demo_workflow import batch_comparison, comparison_lines, loop_settings
 from pam_bringup.stack import default_params_file
 from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable
+from pam_estimator.pam_ukf import DEFAULT_TUNING
 from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
 from pam_model.model_extensions import NO_EXTENSIONS, load_extensions
@@ -72,7 +73,8 @@ def test_the_batch_comparison_is_deterministic():
     nominal = PamModel(params=load_parameters('default'), valve_map=load_valve_map('default'))
     true = PamModel(params=load_scenario('realistic').apply(nominal.params),
                     valve_map=nominal.valve_map)
-    models = {'nominal': (nominal, NO_EXTENSIONS), 'identified': (true, NO_EXTENSIONS)}
+    models = {'nominal': (nominal, NO_EXTENSIONS, DEFAULT_TUNING),
+              'identified': (true, NO_EXTENSIONS, DEFAULT_TUNING)}
     first = batch_comparison('realistic', models, settings, 10.0, 0)
     assert batch_comparison('realistic', models, settings, 10.0, 0) == first
     for run in ('nominal', 'identified'):

@@ -10,10 +10,12 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import yaml
+
 from pam_model.identification.records import CalibrationRecord, RecordError
 from pam_model.model_extensions import load_extensions, save_extensions
 from pam_model.parallel import map_in_processes
-from pam_model.parameters import load_parameters, save_parameters
+from pam_model.parameters import load_parameters, read_yaml, save_parameters
 from pam_model.simulate import SimulationResult
 from pam_model.valve_map import load_valve_map
 
@@ -23,15 +25,42 @@ PARAMS_FILE = 'params.yaml'
 KAPPA_FILE = 'kappa.csv'
 REPORT_FILE = 'report.txt'
 EXTENSIONS_FILE = 'extensions.yaml'
+#: ukf_node's process_noise chosen for the identified model (pam_estimator.noise_choice)
+TUNING_FILE = 'tuning.yaml'
 
 
-def identified_ukf_parameters(directory) -> dict[str, str]:
+def identified_ukf_parameters(directory) -> dict:
     """ukf_node's parameters that put it on the model in `directory` (pam-identify's output:
-    it always writes all three files)."""
+    it always writes the first three files; tuning.yaml, when there, adds process_noise)."""
     directory = Path(directory)
-    return {'model_parameters': str(directory / PARAMS_FILE),
-            'valve_map': str(directory / KAPPA_FILE),
-            'model_extensions': str(directory / EXTENSIONS_FILE)}
+    values = {'model_parameters': str(directory / PARAMS_FILE),
+              'valve_map': str(directory / KAPPA_FILE),
+              'model_extensions': str(directory / EXTENSIONS_FILE)}
+    if (directory / TUNING_FILE).exists():
+        values['process_noise'] = list(identified_tuning(directory).Q)
+    return values
+
+
+def identified_tuning(directory, name: str = TUNING_FILE):
+    """The UKF's tuning on the model in `directory`: the default tuning with the process_noise
+    of its tuning.yaml (`name`) when the file is there (ValueError naming the file when it is
+    malformed)."""
+    from .pam_ukf import DEFAULT_TUNING, UkfTuning
+    path = Path(directory) / name
+    if not path.exists():
+        return DEFAULT_TUNING
+    data = read_yaml(path)
+    unknown = sorted(set(map(str, data)) - {'name', 'process_noise'})
+    if unknown:
+        raise ValueError(f'{path}: unknown key {unknown[0]!r} (known: name, process_noise)')
+    q = data.get('process_noise')
+    if not isinstance(q, list) or not all(isinstance(v, (int, float)) for v in q):
+        raise ValueError(f'{path}: process_noise must be a list of 4 numbers, got {q!r}')
+    try:
+        return UkfTuning(tuple(float(v) for v in q), DEFAULT_TUNING.R,
+                         DEFAULT_TUNING.P0).validate()
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from exc
 
 
 def load_identified(directory):
@@ -85,9 +114,11 @@ def _size(path: Path) -> int:
     return path.stat().st_size if path.is_file() else 0
 
 
-def write_identification(ident, report: str, out_dir, name: str = 'identified') -> dict:
-    """Write params.yaml, kappa.csv, extensions.yaml (an empty mapping when none was identified)
-    and report.txt into out_dir, which must not exist.
+def write_identification(ident, report: str, out_dir, name: str = 'identified',
+                         tuning=None) -> dict:
+    """Write params.yaml, kappa.csv, extensions.yaml (an empty mapping when none was identified),
+    report.txt and, with a tuning (pam_estimator.pam_ukf.UkfTuning), tuning.yaml (its Q as
+    ukf_node's process_noise) into out_dir, which must not exist.
 
     The files are written into a temporary sibling, read back with the loaders the nodes use,
     and only then renamed to out_dir: a failure leaves nothing behind. Returns {kind: path}.
@@ -103,6 +134,11 @@ def write_identification(ident, report: str, out_dir, name: str = 'identified') 
         ident.valve_map.save(staging / KAPPA_FILE)
         save_extensions(ident.extensions, staging / EXTENSIONS_FILE, name=name)
         (staging / REPORT_FILE).write_text(report + '\n')
+        if tuning is not None:
+            (staging / TUNING_FILE).write_text(yaml.safe_dump(
+                {'name': name, 'process_noise': [float(q) for q in tuning.Q]}, sort_keys=False))
+            if identified_tuning(staging).Q != tuple(float(q) for q in tuning.Q):
+                raise ValueError(f'{TUNING_FILE}: does not read back as written')
         load_parameters(staging / PARAMS_FILE)        # what ukf_node will load
         load_valve_map(staging / KAPPA_FILE)
         if load_extensions(staging / EXTENSIONS_FILE) != ident.extensions:
@@ -113,4 +149,4 @@ def write_identification(ident, report: str, out_dir, name: str = 'identified') 
         raise
     return {kind: out_dir / f for kind, f in
             (('params', PARAMS_FILE), ('kappa', KAPPA_FILE), ('extensions', EXTENSIONS_FILE),
-             ('report', REPORT_FILE))}
+             ('report', REPORT_FILE), ('tuning', TUNING_FILE)) if (out_dir / f).exists()}

@@ -15,7 +15,9 @@ import pytest
 from pam_bag.bags import BagWriter, load_bag
 from pam_common.testing import executable
 from pam_estimator.bag_runs import load_run
+from pam_estimator.calibration_runs import identified_tuning
 from pam_estimator.evaluation import evaluate
+from pam_estimator.noise_choice import CANDIDATES
 from pam_estimator.pam_ukf import TUNINGS
 from pam_model.identification.force_fit import intercept_combinations
 from pam_model.mismatch import load_scenario
@@ -70,6 +72,15 @@ def test_identify_recovers_the_plant_and_writes_loadable_files(identified):
     assert abs(params.mu_s / truth.mu_s - 1.0) < 0.03
     kappa = load_valve_map(out / 'kappa.csv')
     np.testing.assert_allclose(kappa.alpha, load_valve_map()(kappa.u), atol=0.005)
+    # the UKF's velocity process noise chosen on the free run: tuning.yaml, the report, the
+    # ukf_node line
+    tuning = identified_tuning(out)
+    report = (out / 'report.txt').read_text()
+    assert 'UKF velocity process noise' in report and '<- chosen' in report
+    assert tuning.Q[1] in (TUNINGS['default'].Q[1], *CANDIDATES)
+    assert f'chosen {tuning.Q[1]:.0e} (rad/s)^2' in report
+    assert tuning._replace(Q=TUNINGS['default'].Q) == TUNINGS['default']
+    assert 'process_noise:=' in stdout and f'--tuning {out}/tuning.yaml' in stdout
 
 
 def test_the_extensions_file_is_written_and_empty_for_a_plant_without_effects(bags, identified,
@@ -85,8 +96,10 @@ def test_the_extensions_file_is_written_and_empty_for_a_plant_without_effects(ba
         assert group in report
     assert 'extensions kept (extensions.yaml): none' in report
     paper = tmp_path / 'paper'
-    result = identify(*(bags / n for n in CALIBRATION), '-o', paper, '--no-extensions')
+    result = identify(*(bags / n for n in CALIBRATION), '-o', paper, '--no-extensions',
+                      '--no-velocity-noise')
     assert result.returncode == 0, result.stderr
+    assert not (paper / 'tuning.yaml').exists() and 'process_noise:=' not in result.stdout
     assert load_parameters(paper / 'params.yaml') == load_parameters(out / 'params.yaml')
     assert load_extensions(paper / 'extensions.yaml') == NO_EXTENSIONS
     assert '[hysteresis]' not in (paper / 'report.txt').read_text()
@@ -105,8 +118,14 @@ def test_the_identified_model_beats_the_nominal_one_on_a_validation_bag(bags, id
             q[label] = table['ukf'].Q
         assert q['identified'] < 0.01 and q['identified'] < 0.3 * q['nominal'], (mode, q)
     result = run(executable('pam-evaluate', 'pam_estimator'), '--params', out / 'params.yaml',
-                 '--kappa', out / 'kappa.csv', bags / 'validation_free')
+                 '--kappa', out / 'kappa.csv', '--tuning', out / 'tuning.yaml',
+                 bags / 'validation_free')
     assert result.returncode == 0, result.stderr
+    assert f"tuning '{out}/tuning.yaml'" in result.stdout
+    result = run(executable('pam-evaluate', 'pam_estimator'), '--tuning', out / 'nothing.yaml',
+                 bags / 'validation_free')
+    assert result.returncode != 0 and 'neither a preset (default, paper) nor a file' in (
+        result.stderr + result.stdout), result.stderr
 
 
 def test_ukf_node_loads_the_identified_files(identified, node_process):

@@ -16,6 +16,7 @@ from pam_model.valve_map import load_valve_map
 
 from ..bag_runs import SUPPLY, is_bag, load_bag_run, load_run
 from ..bias_ukf import DEFAULT_BIAS_STATES
+from ..calibration_runs import identified_tuning
 from ..evaluation import (
     PAPER_TABLE_III,
     STARTS,
@@ -65,8 +66,10 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help='the UKF also estimates random-walk biases: pressure-sensor offsets '
                              'b1, b2 (Pa) and a joint-torque bias b_tau (N m), with the default '
                              'rates and initial variances (docs/model_extensions.md, Bias states)')
-    parser.add_argument('--tuning', default='default', choices=sorted(TUNINGS),
-                        help='UKF Q, R, P(0) preset (default: %(default)s)')
+    parser.add_argument('--tuning', default='default', metavar='|'.join(sorted(TUNINGS)) + '|FILE',
+                        help='UKF Q, R, P(0): a preset, or the tuning.yaml pam-identify wrote '
+                             '(the default preset with its process_noise) (default: '
+                             '%(default)s)')
     parser.add_argument('--transient', type=float, default=DEFAULT_TRANSIENT, metavar='S',
                         help='also print I, M, Q over t >= S s only, leaving out the initial '
                              'transient of the filter (default: %(default)g; the headline table '
@@ -102,7 +105,11 @@ def load_run_and_supply(path, locked, use_supply: bool):
 def body(argv=None) -> int:
     args = parse_args(argv)
     model = PamModel(params=load_parameters(args.params), valve_map=load_valve_map(args.valve_map))
-    tuning = TUNINGS[args.tuning]
+    if args.tuning not in TUNINGS and not Path(args.tuning).is_file():
+        raise ValueError(f'--tuning {args.tuning}: neither a preset ({", ".join(TUNINGS)}) nor '
+                         'a file')
+    tuning = (TUNINGS[args.tuning] if args.tuning in TUNINGS
+              else identified_tuning(Path(args.tuning).parent, Path(args.tuning).name))
     extensions = load_extensions(args.extensions)
     bias_states = DEFAULT_BIAS_STATES if args.bias_states else None
     for path in args.runs:

@@ -10,10 +10,12 @@ from pathlib import Path
 from pam_model.cli.common import run_cli
 from pam_model.identification.identify import IdentificationError, format_report, identify
 from pam_model.mismatch import load_scenario
+from pam_model.model import PamModel
 from pam_model.parameters import load_parameters
 from pam_model.valve_map import load_valve_map
 
 from ..calibration_runs import load_records, write_identification
+from ..noise_choice import choose_velocity_noise
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -25,11 +27,14 @@ def parse_args(argv=None) -> argparse.Namespace:
                     'the pressure transients, mu_s and mu_p from free-joint runs, with scipy '
                     'least squares; and the estimator\'s extensions the runs reveal (sensor '
                     'offsets from the vented holds, force hysteresis from the torque meter, the '
-                    'air lines\' dead volume from the transients; docs/identification.md). '
+                    'air lines\' dead volume from the transients; docs/identification.md); '
+                    'then the UKF\'s velocity process noise on that model, chosen on the free '
+                    'runs (pam_estimator.noise_choice). '
                     'Prints each value with its uncertainty and the residuals, and '
-                    'writes OUTPUT/params.yaml, OUTPUT/kappa.csv, OUTPUT/extensions.yaml and '
-                    'OUTPUT/report.txt, which ukf_node (model_parameters, valve_map, '
-                    'model_extensions) and pam-evaluate (--params, --valve-map, --extensions) '
+                    'writes OUTPUT/params.yaml, OUTPUT/kappa.csv, OUTPUT/extensions.yaml, '
+                    'OUTPUT/tuning.yaml and OUTPUT/report.txt, which ukf_node '
+                    '(model_parameters, valve_map, model_extensions, process_noise) and '
+                    'pam-evaluate (--params, --valve-map, --extensions, --tuning) '
                     'load. Runs: bags recorded while profile_player played profile:='
                     'calibration_locked (joint locked, one bag per lock angle) and '
                     'calibration_free, or made by pam-calibration-bags on the simulator.')
@@ -57,6 +62,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                              'pam-calibration-bags --scenario made it); the report then shows '
                              'the true values (and the scenario\'s effects) and the errors; '
                              '--truth-mismatch is the former name')
+    parser.add_argument('--no-velocity-noise', dest='velocity_noise', action='store_false',
+                        help="keep the UKF's default tuning: do not choose its velocity process "
+                             'noise on the free calibration runs (no tuning.yaml)')
     parser.add_argument('--name', default='identified', help='name written into params.yaml')
     return parser.parse_args(argv)
 
@@ -79,20 +87,32 @@ def body(argv=None) -> int:
                          log=lambda line: print(line, flush=True), extensions=args.extensions)
     except IdentificationError as exc:
         raise ValueError(f'{exc}\nnothing written') from exc
+    choice = None
+    if args.velocity_noise:
+        print("choosing the UKF's velocity process noise on the free runs ...", flush=True)
+        choice = choose_velocity_noise(
+            records, PamModel(params=ident.params, valve_map=ident.valve_map), ident.extensions)
     scenario = load_scenario(args.truth_scenario) if args.truth_scenario else None
     truth = scenario.apply(prior) if scenario is not None else None
     report = format_report(ident, prior, truth, prior_map if truth is not None else None,
                            scenario.effects if scenario is not None else None)
-    files = write_identification(ident, report, args.output, args.name)
+    if choice is not None:
+        report += '\n\n' + '\n'.join(choice.report())
+    files = write_identification(ident, report, args.output, args.name,
+                                 None if choice is None else choice.tuning())
     print()
     print(report)
     print()
-    print(f'wrote {files["params"]}, {files["kappa"]}, {files["extensions"]}, {files["report"]}'
+    print(f'wrote {", ".join(str(f) for f in files.values())}'
           + ('' if ident.complete else ' (PARTIAL: see "NOT identified" above)'))
+    noise = ('' if choice is None else
+             f' -p process_noise:="[{", ".join(f"{q:g}" for q in choice.tuning().Q)}]"')
     print(f'use: ros2 run pam_estimator ukf_node --ros-args -p model_parameters:={files["params"]}'
-          f' -p valve_map:={files["kappa"]} -p model_extensions:={files["extensions"]}')
+          f' -p valve_map:={files["kappa"]} -p model_extensions:={files["extensions"]}{noise}')
     print(f'     pam-evaluate --params {files["params"]} --valve-map {files["kappa"]} '
-          f'--extensions {files["extensions"]} VALIDATION_BAG')
+          f'--extensions {files["extensions"]}'
+          + ('' if choice is None else f' --tuning {files["tuning"]}')
+          + ' VALIDATION_BAG')
     return 0
 
 
