@@ -11,6 +11,8 @@ import numpy as np
 from pam_driver.sim_config import build_config
 from pam_estimator.bag_runs import load_run
 from pam_estimator.cli import calibration_bags
+from pam_estimator.noise_choice import with_velocity_noise
+from pam_estimator.pam_ukf import DEFAULT_TUNING
 from pam_model.effects import Effects
 from pam_model.mismatch import load_scenario
 from pam_model.model import PamModel
@@ -45,9 +47,11 @@ def test_cross_forms_core_path_on_a_short_profile(monkeypatch):
     nominal = PamModel()
     plant = PamModel(params=scenario.apply(load_parameters()))
     offsets = Effects(sensor_offset=scenario.effects.sensor_offset)
-    forms = bench.estimators(nominal, (plant, offsets))
-    assert forms[bench.NOMINAL] == (nominal, NO_EXTENSIONS)
-    assert forms[bench.PAPER] == (plant, NO_EXTENSIONS)
+    chosen = with_velocity_noise(DEFAULT_TUNING, 1e-4)
+    forms = bench.estimators(nominal, (plant, offsets), chosen)
+    assert forms[bench.NOMINAL] == (nominal, NO_EXTENSIONS, DEFAULT_TUNING)
+    assert forms[bench.PAPER] == (plant, NO_EXTENSIONS, DEFAULT_TUNING)
+    assert forms[bench.EXTENDED] == (plant, offsets, chosen)
     cells = bench.family_cells(scenario, plant, forms, [1, 2], 1.0)
     for form in bench.FORMS:
         for key in ('Q_psi', 'Q_tau'):
