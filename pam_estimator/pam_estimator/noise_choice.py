@@ -16,6 +16,7 @@ docs/model_extensions.md has what it changes on the plant families.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import NamedTuple
 
@@ -100,7 +101,9 @@ def choose_velocity_noise(records, model: PamModel, extensions: Effects,
     for q in candidates:
         tuning = with_velocity_noise(base, q)
         squares = [angle_rms(r, model, extensions, tuning) ** 2 * len(r.t) for r in runs]
-        scores[q] = float(np.sqrt(sum(squares) / sum(len(r.t) for r in runs)))
+        rms = float(np.sqrt(sum(squares) / sum(len(r.t) for r in runs)))
+        scores[q] = rms if math.isfinite(rms) else math.inf     # a filter that diverged
+
     q, why = pick(scores, own)
     return NoiseChoice(q, scores, why)
 

@@ -11,6 +11,7 @@ import subprocess
 
 import numpy as np
 import pytest
+import yaml
 
 from pam_bag.bags import BagWriter, load_bag
 from pam_common.testing import executable
@@ -81,6 +82,9 @@ def test_identify_recovers_the_plant_and_writes_loadable_files(identified):
     assert f'chosen {tuning.Q[1]:.0e} (rad/s)^2' in report
     assert tuning._replace(Q=TUNINGS['default'].Q) == TUNINGS['default']
     assert 'process_noise:=' in stdout and f'--tuning {out}/tuning.yaml' in stdout
+    # ROS reads the printed list as doubles only when every entry is written as one
+    printed = yaml.safe_load(stdout.split('process_noise:="')[1].split('"')[0])
+    assert printed == list(tuning.Q) and all(isinstance(q, float) for q in printed), printed
 
 
 def test_the_extensions_file_is_written_and_empty_for_a_plant_without_effects(bags, identified,

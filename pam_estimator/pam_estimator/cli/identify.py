@@ -106,7 +106,7 @@ def body(argv=None) -> int:
     print(f'wrote {", ".join(str(f) for f in files.values())}'
           + ('' if ident.complete else ' (PARTIAL: see "NOT identified" above)'))
     noise = ('' if choice is None else
-             f' -p process_noise:="[{", ".join(f"{q:g}" for q in choice.tuning().Q)}]"')
+             f' -p process_noise:="[{", ".join(map(yaml_double, choice.tuning().Q))}]"')
     print(f'use: ros2 run pam_estimator ukf_node --ros-args -p model_parameters:={files["params"]}'
           f' -p valve_map:={files["kappa"]} -p model_extensions:={files["extensions"]}{noise}')
     print(f'     pam-evaluate --params {files["params"]} --valve-map {files["kappa"]} '
@@ -114,6 +114,13 @@ def body(argv=None) -> int:
           + ('' if choice is None else f' --tuning {files["tuning"]}')
           + ' VALIDATION_BAG')
     return 0
+
+
+def yaml_double(value: float) -> str:
+    """value as every YAML reader reads a double: exact, with a decimal point (1e-09 is a
+    string to YAML 1.1 and 1000 an integer, and ROS refuses a list of mixed types)."""
+    text = repr(float(value))
+    return text.replace('e', '.0e') if 'e' in text and '.' not in text else text
 
 
 def main(argv=None) -> None:
