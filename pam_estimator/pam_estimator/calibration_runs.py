@@ -41,14 +41,19 @@ def identified_ukf_parameters(directory) -> dict:
     return values
 
 
-def identified_tuning(directory, name: str = TUNING_FILE):
-    """The UKF's tuning on the model in `directory`: the default tuning with the process_noise
-    of its tuning.yaml (`name`) when the file is there (ValueError naming the file when it is
-    malformed)."""
+def identified_tuning(directory):
+    """The UKF's tuning on the model in `directory`: load_tuning of its tuning.yaml when the file
+    is there, else the default tuning."""
+    from .pam_ukf import DEFAULT_TUNING
+    path = Path(directory) / TUNING_FILE
+    return load_tuning(path) if path.exists() else DEFAULT_TUNING
+
+
+def load_tuning(path):
+    """The default tuning with the process_noise of a tuning.yaml (pam-identify's layout: name,
+    process_noise); ValueError naming the file when it is missing or malformed."""
     from .pam_ukf import DEFAULT_TUNING, UkfTuning
-    path = Path(directory) / name
-    if not path.exists():
-        return DEFAULT_TUNING
+    path = Path(path)
     data = read_yaml(path)
     unknown = sorted(set(map(str, data)) - {'name', 'process_noise'})
     if unknown:

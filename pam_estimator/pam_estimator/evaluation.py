@@ -61,6 +61,13 @@ class Estimates:
 STARTS = ('measured', 'recorded')
 
 
+def read_pressures(y, extensions: Effects = NO_EXTENSIONS) -> np.ndarray:
+    """Pa abs: the readings y (Pa) through the extensions' sensor offset o and gain error g as
+    the UKF reads them, (y - o) / (1 + g)."""
+    return ((np.asarray(y, dtype=float) - np.asarray(extensions.sensor_offset))
+            / (1.0 + np.asarray(extensions.sensor_gain_error)))
+
+
 def start_state(run: SimulationResult, start: str = STARTS[0],
                 extensions: Effects = NO_EXTENSIONS) -> np.ndarray:
     """The state (4,) [psi rad, psi_dot rad/s, P1 Pa, P2 Pa] the UKF and the model alone start
@@ -68,8 +75,7 @@ def start_state(run: SimulationResult, start: str = STARTS[0],
     extensions' sensor offset o and gain error g as the UKF reads them: (y - o) / (1 + g)) or
     'recorded' (the run's x[0])."""
     if start == 'measured':
-        pressures = ((run.p_measured[0] - np.asarray(extensions.sensor_offset))
-                     / (1.0 + np.asarray(extensions.sensor_gain_error)))
+        pressures = read_pressures(run.p_measured[0], extensions)
         x0 = np.array([run.x[0, 0], run.x[0, 1], pressures[0], pressures[1]], dtype=float)
     elif start == 'recorded':
         x0 = np.array(run.x[0], dtype=float)

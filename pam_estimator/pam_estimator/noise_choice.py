@@ -27,6 +27,7 @@ from pam_model.identification.fit_result import NotIdentifiable
 from pam_model.identification.friction_fit import free_runs
 from pam_model.model import PamModel
 
+from .evaluation import read_pressures
 from .pam_ukf import DEFAULT_TUNING, PamUkf, UkfTuning
 
 __all__ = ['CANDIDATES', 'MARGIN', 'NoiseChoice', 'angle_rms', 'choose_velocity_noise', 'pick',
@@ -73,8 +74,7 @@ def angle_rms(record, model: PamModel, extensions: Effects,
     pam_model.identification.records.CalibrationRecord), started from its first encoder reading
     and pressures (read through the extensions' sensor offset and gain error, as the UKF reads
     them), predicting with u[k-1] and updating with P[k] as pam-evaluate does."""
-    p0 = ((record.P[0] - np.asarray(extensions.sensor_offset))
-          / (1.0 + np.asarray(extensions.sensor_gain_error)))
+    p0 = read_pressures(record.P[0], extensions)
     ukf = PamUkf(model=replace(model, locked=False), tuning=tuning,
                  x0=(float(record.psi[0]), float(record.psi_dot[0]), float(p0[0]),
                      float(p0[1])), extensions=extensions)

@@ -16,7 +16,7 @@ from pam_model.valve_map import load_valve_map
 
 from ..bag_runs import SUPPLY, is_bag, load_bag_run, load_run
 from ..bias_ukf import DEFAULT_BIAS_STATES
-from ..calibration_runs import identified_tuning
+from ..calibration_runs import load_tuning
 from ..evaluation import (
     PAPER_TABLE_III,
     STARTS,
@@ -108,8 +108,7 @@ def body(argv=None) -> int:
     if args.tuning not in TUNINGS and not Path(args.tuning).is_file():
         raise ValueError(f'--tuning {args.tuning}: neither a preset ({", ".join(TUNINGS)}) nor '
                          'a file')
-    tuning = (TUNINGS[args.tuning] if args.tuning in TUNINGS
-              else identified_tuning(Path(args.tuning).parent, Path(args.tuning).name))
+    tuning = TUNINGS[args.tuning] if args.tuning in TUNINGS else load_tuning(args.tuning)
     extensions = load_extensions(args.extensions)
     bias_states = DEFAULT_BIAS_STATES if args.bias_states else None
     for path in args.runs:
