@@ -48,7 +48,7 @@ from pam_common.node_params import (
 )
 from pam_common.node_skeleton import node_main, parameter_values
 from pam_common.qos import RECORD_QOS
-from pam_common.run_health import judge_run
+from pam_common.run_health import counter_gaps, judge_run
 from pam_common.stamps import stamp_ns
 from pam_common.topics import (
     DEFAULT_NAMESPACE,
@@ -263,6 +263,18 @@ class TrackingReport(Node):
         return judge_run(self.rig_status[1] if self.rig_status else None, len(set(counters)),
                          expected)
 
+    def lost_where(self) -> str | None:
+        """Where the samples lost at the report are in the record (the gaps in the estimate's
+        sample counters between the first and the last truth stamps), or None if none was lost."""
+        first, last = min(self.truth), max(self.truth)
+        stamps = {k: s for s, k in self.estimate_samples.items() if first <= s <= last and k}
+        gaps = counter_gaps(stamps)
+        if not gaps:
+            return None
+        before, lost = max(gaps, key=lambda gap: gap[1])
+        return (f'samples lost at the report in {len(gaps)} gap(s); the longest: {lost} samples '
+                f'after {(stamps[before] - first) * 1e-9:.2f} s of the record')
+
     def finish(self) -> int:
         """Exit code: the report's, or why there is none."""
         if self.finished.done() and self.finished.result() != 0:
@@ -318,6 +330,9 @@ class TrackingReport(Node):
         print(f'  measurements received: {len(self.truth)}', flush=True)
         for line in health.lines():
             print('  ' + line, flush=True)
+        where = self.lost_where()
+        if where:
+            print('  ' + where, flush=True)
         if self.config.plot:
             title = self.config.title + ('' if health.valid else
                                             ' - INVALID: not real time, not a result')

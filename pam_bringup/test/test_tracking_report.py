@@ -75,10 +75,11 @@ def test_a_run_without_a_complete_step_reports_so(node_process, probe):
     assert 'Traceback' not in report.stdout + report.stderr, report.stderr
 
 
-def feed_held_reference(node_process, probe, tmp_path, rig: dict):
+def feed_held_reference(node_process, probe, tmp_path, rig: dict, missing=range(0)):
     """tracking_report over 3 s of one held reference, the estimate 0.1 rad off for the first
-    20 ms, 0.01 rad after, every estimate with its sample counter, the rig status `rig`
-    published meanwhile: (report, its exit code, its summary JSON or None)."""
+    20 ms, 0.01 rad after, every estimate with its sample counter except those of the samples
+    `missing` (k, from 0), the rig status `rig` published meanwhile: (report, its exit code, its
+    summary JSON or None)."""
     summary = tmp_path / 'summary.json'
     report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=3.0',
                           '-p', 'transient:=1.0', '-p', f'summary:={summary}')
@@ -99,7 +100,8 @@ def feed_held_reference(node_process, probe, tmp_path, rig: dict):
             angle = 0.05 + 0.1 * k / 3000.0            # varies: Q needs a measured range
             estimate = JointEstimate(angle=angle + (0.1 if k < 20 else 0.01), sample=k + 1)
             estimate.header.stamp = stamp
-            estimates.publish(estimate)
+            if k not in missing:
+                estimates.publish(estimate)
             msg = JointMeasurement(angle=angle)
             msg.header.stamp = stamp
             truth.publish(msg)
@@ -145,6 +147,20 @@ def test_a_run_whose_rig_was_late_is_invalid(node_process, probe, tmp_path):
     assert ': INVALID: ' in report.stdout and 'estimation error' in report.stdout
     assert summary['valid'] is False and summary['health']['valid'] is False, summary
     assert len(summary['health']['reasons']) == 2, summary['health']
+
+
+def test_samples_lost_at_the_report_make_the_run_invalid_and_say_where(node_process, probe,
+                                                                     tmp_path):
+    """100 estimates of the samples 1.5 s into the record never come: 100 of 3001 counters lost
+    (3.3 % > 1 %), INVALID, and the report says it was one gap, 100 samples, after 1.50 s."""
+    report, code, summary = feed_held_reference(node_process, probe, tmp_path, CLEAN_RIG,
+                                                missing=range(1500, 1600))
+    assert code == 1, report.stdout + report.stderr
+    assert 'INVALID run: the loop was not real time (100 of 3001 samples lost at the report' \
+        in report.stdout, report.stdout
+    assert re.search(r'^  samples lost at the report in 1 gap\(s\); the longest: 100 samples '
+                     r'after 1\.50 s of the record$', report.stdout, re.MULTILINE), report.stdout
+    assert summary['health']['samples_lost'] == 100, summary['health']
 
 
 def test_start_at_the_first_step_records_whole_holds(node_process, probe):

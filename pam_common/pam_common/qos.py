@@ -34,8 +34,10 @@ CLOCK_QOS = LATEST_QOS
 VIEW_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST,
                       depth=100, durability=DurabilityPolicy.VOLATILE)
 #: A recorder's subscriptions of the 1 kHz streams (tracking_report): SAMPLE_QOS with a queue of
-#: 2000 (2 s at 1 kHz, more in a lockstep run that goes faster than real time): a recorder
-#: starved of CPU for a moment (a busy machine, a collection) catches up instead of losing the
-#: samples that arrived meanwhile. About 0.2 MB per topic at most.
+#: 30000 (30 s at 1 kHz). A recorder is not part of the loop: a lockstep loop goes as fast as
+#: its three nodes answer (600-1500 steps/s on the 2-core development machine), and a recorder
+#: starved of CPU for a moment (a busy machine, a collection) falls behind; the queue lets it catch
+#: up afterwards instead of losing what arrived meanwhile. Memory is taken as samples queue
+#: (about 0.1 kB each), none while it keeps up.
 RECORD_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        depth=2000, durability=DurabilityPolicy.VOLATILE)
+                        depth=30000, durability=DurabilityPolicy.VOLATILE)

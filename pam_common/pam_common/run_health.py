@@ -51,6 +51,7 @@ No rig status at all (rig None) makes the run INVALID: its real-time health is u
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -170,6 +171,15 @@ def _ms(seconds: float) -> str:
 
 def _count(x: float) -> str:
     return 'n/a' if not _known(x) else f'{x:.0f}'
+
+
+def counter_gaps(counters) -> list[tuple[int, int]]:
+    """The gaps in a set of the rig's sample counters: (the last counter before the gap, the
+    number of counters missing), in counter order. Where a report lost its samples says why: one
+    long gap is a stall of the receiving process (or of its machine) longer than its queues;
+    many short ones, a receiver slower than the stream all along."""
+    ordered = sorted({int(k) for k in counters})
+    return [(a, b - a - 1) for a, b in itertools.pairwise(ordered) if b - a > 1]
 
 
 def judge_run(rig: Mapping | None, received: int, expected: int,

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from pam_common.run_health import NO_RIG, HealthLimits, judge_run, number
+from pam_common.run_health import NO_RIG, HealthLimits, counter_gaps, judge_run, number
 
 #: a clean sim_node status as /diagnostics carries it (strings)
 CLEAN = {'samples taken': '64001', 'late samples': '0', 'missed samples': '0',
@@ -121,3 +121,10 @@ def test_a_run_without_any_estimate_is_invalid():
     health = judge_run(rig, received=0, expected=0)
     assert not health.valid
     assert any('no estimate received' in r for r in health.reasons), health.reasons
+
+
+def test_counter_gaps_say_where_and_how_many_samples_are_missing():
+    assert counter_gaps([]) == [] and counter_gaps([7]) == []
+    assert counter_gaps(range(1, 1001)) == []
+    # unordered, repeated: one gap of 3 after 4, one of 1 after 10
+    assert counter_gaps([10, 1, 2, 3, 4, 8, 9, 12, 4, 9]) == [(4, 3), (10, 1)]
