@@ -33,11 +33,16 @@ CLOCK_QOS = LATEST_QOS
 #: acknowledgement from it, so a slow viewer never holds the stack up (it misses samples instead).
 VIEW_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST,
                       depth=100, durability=DurabilityPolicy.VOLATILE)
+#: The deepest keep-last queue a subscription gets: Fast DDS caps a reader's history at its
+#: resource limit max_samples, 5000 by default (rclpy cannot set it), and a deeper KEEP_LAST
+#: depth then keeps the OLDEST 5000 samples and refuses the newer ones (measured with rclpy on
+#: Jazzy: depth 6000 or 30000 -> samples 0..4999 of 12000 kept, depth 4999 -> the last 4999).
+RECORD_DEPTH = 5000
 #: A recorder's subscriptions of the 1 kHz streams (tracking_report): SAMPLE_QOS with a queue of
-#: 30000 (30 s at 1 kHz). A recorder is not part of the loop: a lockstep loop goes as fast as
-#: its three nodes answer (600-1500 steps/s on the 2-core development machine), and a recorder
-#: starved of CPU for a moment (a busy machine, a collection) falls behind; the queue lets it catch
-#: up afterwards instead of losing what arrived meanwhile. Memory is taken as samples queue
-#: (about 0.1 kB each), none while it keeps up.
+#: RECORD_DEPTH. A recorder is not part of the loop: a lockstep loop goes as fast as its three
+#: nodes answer (600-1500 steps/s on the 2-core development machine), and a recorder starved of
+#: CPU for a moment (a busy machine, a collection) falls behind; the queue lets it catch up
+#: afterwards instead of losing what arrived meanwhile. Memory is taken as samples queue (about
+#: 0.1 kB each), none while it keeps up.
 RECORD_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        depth=30000, durability=DurabilityPolicy.VOLATILE)
+                        depth=RECORD_DEPTH, durability=DurabilityPolicy.VOLATILE)

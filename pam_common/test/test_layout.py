@@ -319,7 +319,7 @@ def test_the_topic_names_and_profiles_stay_as_they_are():
     assert topics.absolute(topics.ESTIMATE, '/x/') == '/x/estimate'
     assert topics.absolute(topics.CLOCK, '/x') == '/clock'
     for profile, depth in ((qos.SAMPLE_QOS, 100), (qos.LATEST_QOS, 10), (qos.CLOCK_QOS, 10),
-                           (qos.RECORD_QOS, 30000)):
+                           (qos.RECORD_QOS, 5000)):
         assert (profile.reliability, profile.history, profile.depth, profile.durability) == (
             ReliabilityPolicy.RELIABLE, HistoryPolicy.KEEP_LAST, depth,
             DurabilityPolicy.VOLATILE)
