@@ -24,6 +24,7 @@ from pathlib import Path
 
 from pam_common.diagnostics import is_status_of
 from pam_common.executables import find_executable
+from pam_common.qos import RECORD_DEPTH
 from pam_common.testing import DOMAIN_LOCKS, Collector, NodeProcess, Probe, child_env, wait_until
 
 STARTUP = 60.0        # s: a fresh node's first /diagnostics on a loaded 2-core machine
@@ -231,7 +232,7 @@ class Stack:
         from diagnostic_msgs.msg import DiagnosticArray
         for msg_type, topic in [*outputs, (DiagnosticArray, '/diagnostics')]:
             self.topics[topic] = probe.subscribe(
-                msg_type, topic, lambda m, t=topic: self.watch.check(t, m), depth=10000)
+                msg_type, topic, lambda m, t=topic: self.watch.check(t, m), depth=RECORD_DEPTH)
         self._finished_tracebacks = 0      # of processes replaced by a restart
         self._reported: set[int] = set()   # ids of the processes whose death was reported
 

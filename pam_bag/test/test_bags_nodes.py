@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from pam_common.qos import RECORD_DEPTH
 from pam_common.testing import executable, stamp_ns, wait_until
 
 RECORD_S = 3.0
@@ -109,7 +110,7 @@ def test_record_split_by_duration_and_play_it_back(node_process, probe, tmp_path
     from pam_interfaces.msg import Pressures
     n = len(expected.data)
     # a reader history for all of it: a probe that lags (a busy test process) loses nothing
-    got = probe.subscribe(Pressures, '/pam/pressures', depth=2 * n)
+    got = probe.subscribe(Pressures, '/pam/pressures', depth=min(2 * n, RECORD_DEPTH))
     player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={out}',
                             '-p', 'topics:=/pam/pressures')
     assert player.wait_exit(30.0) == 0, player.stderr
@@ -134,7 +135,7 @@ def test_play_remap_select_timing(node_process, probe):
     from pam_interfaces.msg import JointMeasurement, Pressures
     expected = load_bag(bag, ['/pam/pressures'])
     n = len(expected.data)
-    got = probe.subscribe(Pressures, '/replay/pressures', depth=2 * n)
+    got = probe.subscribe(Pressures, '/replay/pressures', depth=min(2 * n, RECORD_DEPTH))
     other = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=1000)
     player = resumed_player(node_process, probe, '/replay/pressures', '-p', f'bag:={bag}',
                             '-p', 'topics:=/pam/pressures',
@@ -305,7 +306,7 @@ def test_every_message_arrives_though_the_player_exits_at_once(node_process, pro
     acknowledged when a writer's process exits are lost: without it, the split-bag replay above
     lost its last messages in about one run in three right after `make setup`)."""
     from pam_interfaces.msg import Pressures
-    got = probe.subscribe(Pressures, '/pam/pressures', depth=6000)   # room for all of it
+    got = probe.subscribe(Pressures, '/pam/pressures', depth=RECORD_DEPTH)   # room for all of it
     player = resumed_player(node_process, probe, '/pam/pressures', '-p', f'bag:={burst_bag}',
                             '-p', 'read_ahead_size:=100')   # read while sending at 10 kHz
     assert player.wait_exit(30.0) == 0, player.stderr

@@ -25,6 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from std_srvs.srv import Trigger
 
 from pam_bringup.stack import default_params_file
+from pam_common.qos import RECORD_DEPTH
 from pam_common.stamps import stamp_ns
 from pam_common.testing import STOP_TIMEOUT, DriverRigProbe
 from pam_interfaces.msg import (
@@ -325,7 +326,7 @@ def wait_samples(driver, truth, since: int | None, duration: float) -> int:
 
 def run_loop(node_process, probe, tmp_path, rig: str) -> dict:
     """driver_node on the board (or pam-emulator), ukf_node, pi_node (angle): 0 then LEVEL."""
-    truth = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=20000)
+    truth = probe.subscribe(JointMeasurement, '/pam/joint_measured', depth=RECORD_DEPTH)
     reference = probe.publisher(Reference, '/pam/reference')
     board = None
     if rig == 'board':

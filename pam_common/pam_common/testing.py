@@ -308,8 +308,14 @@ class Probe:
                 self._error.append(exc)
 
     def subscribe(self, msg_type, topic: str, callback=None, depth: int = 100) -> Collector:
-        """Collect every message of `topic`; callback(msg) runs first in the spin thread."""
+        """Collect every message of `topic`; callback(msg) runs first in the spin thread. `depth`
+        at most pam_common.qos.RECORD_DEPTH: a deeper keep-last queue keeps the oldest samples
+        and refuses the newer ones once full (Fast DDS's reader cap)."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        from .qos import RECORD_DEPTH
+        if not 0 < depth <= RECORD_DEPTH:
+            raise ValueError(f'depth {depth}: a subscription keeps 1 to {RECORD_DEPTH} samples')
 
         collector = Collector()
 

@@ -42,3 +42,13 @@ def test_a_recorder_behind_gets_the_newest_samples_of_its_queue(ros_context):
         recorder.destroy_node()
         sender.destroy_node()
     assert received == list(range(BACKLOG, total)), (len(received), received[:3], received[-3:])
+
+
+def test_the_probe_refuses_a_queue_deeper_than_a_reader_keeps(probe):
+    import pytest
+    from std_msgs.msg import Float64
+
+    for depth in (0, RECORD_DEPTH + 1):
+        with pytest.raises(ValueError, match=f'depth {depth}: a subscription keeps 1 to '):
+            probe.subscribe(Float64, '/record_queue_test/probe', depth=depth)
+    assert probe.subscribe(Float64, '/record_queue_test/probe', depth=RECORD_DEPTH) is not None
