@@ -86,6 +86,11 @@ PARAMETERS = (
     ParamSpec('startup_timeout', 120.0, 'double', 's',
               'Give up if no reference and measurement arrive within this time.',
               range=(1.0, 3600.0)),
+    ParamSpec('loop_wait', 10.0, 'double', 's',
+              'The recording starts only once estimate and valve_command have a publisher '
+              '(discovery can take seconds, over a network more), so that every sample recorded '
+              'has its estimate; after this long without one, it starts without it (a loop with '
+              'no estimator), with a warning. 0: do not wait.', range=(0.0, 3600.0)),
     ParamSpec('rig', 'sim_node', 'string', '',
               "The rig node's name in the report's namespace whose /diagnostics and "
               "~/reset_statistics give the run's real-time health; 'driver_node' on the real "
@@ -113,6 +118,7 @@ class ReportConfig(NodeConfig):
     title: str
     transient: float
     startup_timeout: float
+    loop_wait: float
     rig: str
     hardware_id: str
 
@@ -144,8 +150,10 @@ class TrackingReport(Node):
         self.finished = Future()
         self.create_subscription(Reference, REFERENCE, self._on_reference, RECORD_QOS)
         self.create_subscription(JointMeasurement, JOINT_MEASURED, self._on_truth, RECORD_QOS)
-        self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, RECORD_QOS)
-        self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, RECORD_QOS)
+        self._loop_topics = (
+            self.create_subscription(JointEstimate, ESTIMATE, self._on_estimate, RECORD_QOS),
+            self.create_subscription(ValveCommand, VALVE_COMMAND, self._on_command, RECORD_QOS))
+        self._loop_wait_since = None    # monotonic time the record could first have started
         self.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RECORD_QOS)
         self._timeout = self.create_timer(self.config.startup_timeout, self._on_timeout)
         DiagnosticsPublisher(self, 'tracking report', self.config.hardware_id, self._report)
@@ -174,12 +182,32 @@ class TrackingReport(Node):
         if self.end_time is not None:
             return
         if self.first_ns is None:
+            if not self._loop_published():
+                return
             self.first_ns = t
             self._reset_rig_statistics()
         self.truth[t] = (msg.angle, msg.torque)
         if (t - self.first_ns) * 1e-9 >= self.config.duration and not self.finished.done():
             self.end_time = time.monotonic()     # wait for a rig status taken after the record
             self._wait_timer = self.create_timer(0.05, self._wait_for_rig_status)
+
+    def _loop_published(self) -> bool:
+        """True once estimate and valve_command have a publisher, or loop_wait s after the
+        record could first have started (then with a warning naming what has none)."""
+        missing = [s.topic_name for s in self._loop_topics if s.get_publisher_count() == 0]
+        if not missing:
+            return True
+        now = time.monotonic()
+        if self._loop_wait_since is None:
+            self._loop_wait_since = now
+            if self.config.loop_wait > 0.0:
+                self.get_logger().info(f"waiting for a publisher of {', '.join(missing)} "
+                                       f'(up to {self.config.loop_wait:g} s) before recording')
+        if now - self._loop_wait_since < self.config.loop_wait:
+            return False
+        self.get_logger().warning(f"no publisher of {', '.join(missing)}: recording without "
+                                  + ('it' if len(missing) == 1 else 'them'))
+        return True
 
     def _wait_for_rig_status(self):
         fresh = self.rig_status is not None and self.rig_status[0] > self.end_time

@@ -17,7 +17,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from pam_common.diagnostics import make_status
 from pam_common.stamps import ns_stamp
 from pam_common.testing import wait_until
-from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference
+from pam_interfaces.msg import JointEstimate, JointMeasurement, Reference, ValveCommand
 
 #: a clean rig status, as sim_node publishes it since its ~/reset_statistics
 CLEAN_RIG = {'samples taken': 3200, 'late samples': 0, 'missed samples': 0,
@@ -46,20 +46,33 @@ class FakeRig:
         self._thread.join(5.0)
 
 
+def loop_publishers(probe) -> tuple:
+    """The probe's publishers of what tracking_report records: (references, truth, estimates,
+    commands)."""
+    return (probe.publisher(Reference, '/pam/reference'),
+            probe.publisher(JointMeasurement, '/pam/joint_measured'),
+            probe.publisher(JointEstimate, '/pam/estimate'),
+            probe.publisher(ValveCommand, '/pam/valve_command'))
+
+
+def subscribed(report, publishers) -> None:
+    """Wait until the report has subscribed to every one of `publishers`."""
+    assert wait_until(lambda: all(p.get_subscription_count() > 0 for p in publishers),
+                      60.0), report.stderr
+
+
 def started_report(node_process, probe, *params):
-    """tracking_report with -p params, and the probe's reference and joint_measured publishers
-    once the report has subscribed to both: (report, references, truth)."""
+    """tracking_report with -p params, and the probe's publishers (loop_publishers) once the
+    report has subscribed to them all: (report, references, truth, estimates)."""
     args = [a for param in params for a in ('-p', param)]
     report = node_process('tracking_report', 'pam_bringup', *args)
-    references = probe.publisher(Reference, '/pam/reference')
-    truth = probe.publisher(JointMeasurement, '/pam/joint_measured')
-    assert wait_until(lambda: references.get_subscription_count() > 0
-                      and truth.get_subscription_count() > 0, 60.0), report.stderr
-    return report, references, truth
+    publishers = loop_publishers(probe)
+    subscribed(report, publishers)
+    return report, *publishers[:3]
 
 
 def test_a_run_without_a_complete_step_reports_so(node_process, probe):
-    report, references, truth = started_report(node_process, probe, 'duration:=1.5')
+    report, references, truth, _ = started_report(node_process, probe, 'duration:=1.5')
     k = 0
     end = time.monotonic() + 60.0
     while report.alive() and time.monotonic() < end:    # 1.5 s of stamps, one reference: < 2 s
@@ -83,12 +96,9 @@ def feed_held_reference(node_process, probe, tmp_path, rig: dict, missing=range(
     summary = tmp_path / 'summary.json'
     report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=3.0',
                           '-p', 'transient:=1.0', '-p', f'summary:={summary}')
-    references = probe.publisher(Reference, '/pam/reference')
-    truth = probe.publisher(JointMeasurement, '/pam/joint_measured')
-    estimates = probe.publisher(JointEstimate, '/pam/estimate')
-    assert wait_until(lambda: references.get_subscription_count() > 0
-                      and truth.get_subscription_count() > 0
-                      and estimates.get_subscription_count() > 0, 60.0), report.stderr
+    publishers = loop_publishers(probe)
+    references, truth, estimates, _ = publishers
+    subscribed(report, publishers)
     fake_rig = FakeRig(probe, rig)
     try:
         references.publish(Reference(mode=Reference.ANGLE, value=0.1))
@@ -166,10 +176,9 @@ def test_samples_lost_at_the_report_make_the_run_invalid_and_say_where(node_proc
 def test_start_at_the_first_step_records_whole_holds(node_process, probe):
     """start:=step: the recording begins at the first change of the reference (1 s into the
     feed), not at the first reference: 2 s recorded are the hold at 0.2 from its first sample."""
-    report, references, truth = started_report(node_process, probe, 'duration:=2.0',
-                                               'start:=step', 'transient:=0.0')
+    report, references, truth, estimates = started_report(node_process, probe, 'duration:=2.0',
+                                                          'start:=step', 'transient:=0.0')
     fake_rig = FakeRig(probe, CLEAN_RIG)
-    estimates = probe.publisher(JointEstimate, '/pam/estimate')   # the loop ran: its counters
     k = 0
     end = time.monotonic() + 60.0
     while report.alive() and time.monotonic() < end and k <= 3500:
@@ -193,3 +202,45 @@ def test_start_at_the_first_step_records_whole_holds(node_process, probe):
     assert 'after the first change of the reference' in report.stderr, report.stderr
     steps = re.findall(r'^\s+(\d+\.\d)\s+(-?\d+\.\d+)deg', report.stdout, re.MULTILINE)
     assert steps == [('0.0', f'{math.degrees(0.2):.2f}')], report.stdout
+
+
+def test_the_record_starts_once_the_loop_publishes(node_process, probe):
+    """Reference and measurements come 1 s before the estimator and the controller publish (a
+    discovery that took its time): the record starts once estimate and valve_command have a
+    publisher, so that every sample recorded has its estimate; the log says what it waited for.
+    """
+    report = node_process('tracking_report', 'pam_bringup', '-p', 'duration:=2.0',
+                          '-p', 'transient:=0.0')
+    references, truth = (probe.publisher(Reference, '/pam/reference'),
+                         probe.publisher(JointMeasurement, '/pam/joint_measured'))
+    subscribed(report, (references, truth))
+    fake_rig = FakeRig(probe, CLEAN_RIG)
+    late = None
+    k = 0
+    end = time.monotonic() + 60.0
+    while report.alive() and time.monotonic() < end and k <= 6000:
+        if k == 2000:                       # about 1 s in: the loop's publishers appear
+            late = loop_publishers(probe)[2:]
+            subscribed(report, late)
+        stamp = ns_stamp(1_000_000_000 + k * 1_000_000)
+        if k % 10 == 0:
+            ref = Reference(mode=Reference.ANGLE, value=0.1)
+            ref.header.stamp = stamp
+            references.publish(ref)
+        msg = JointMeasurement(angle=0.05 + 0.1 * k / 6000.0)
+        msg.header.stamp = stamp
+        truth.publish(msg)
+        if late is not None:
+            estimate = JointEstimate(angle=msg.angle + 0.01, sample=k + 1)
+            estimate.header.stamp = stamp
+            late[0].publish(estimate)
+        k += 1
+        time.sleep(0.0005)
+    code = report.wait_exit(30.0)
+    fake_rig.close()
+    assert code == 0, report.stdout + report.stderr
+    assert 'waiting for a publisher of /pam/estimate, /pam/valve_command (up to 10 s) before ' \
+        'recording' in report.stderr, report.stderr
+    recorded = int(re.search(r'2\.0 s, (\d+) samples', report.stdout)[1])
+    estimated = int(re.search(r'estimation error \((\d+) samples\)', report.stdout)[1])
+    assert estimated == recorded == 2001, report.stdout

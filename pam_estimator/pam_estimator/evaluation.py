@@ -100,17 +100,25 @@ def run_ukf(run: SimulationResult, model: PamModel, tuning: UkfTuning = DEFAULT_
     x0 = start_state(run, extensions=extensions) if x0 is None else x0
     ukf = PamUkf(model=model, tuning=tuning, x0=tuple(x0), extensions=extensions,
                  bias_states=bias_states)
-    n = len(run.t)
+    X, tau = filter_samples(ukf, run.p_measured, run.u, supply)
+    return Estimates(X[:, :4], tau, X[:, 4:] if bias_states is not None else None)
+
+
+def filter_samples(ukf: PamUkf, pressures, commands, supply=None):
+    """The UKF `ukf` (at sample 0's state) over samples 1..N-1: at sample k it predicts with
+    commands[k-1] (V, (N, 2)) and updates with pressures[k] (Pa abs, (N, 2)); supply (N,) as in
+    run_ukf. (X (N, state size), torque (N,) N m), sample 0 the initial state."""
+    n = len(pressures)
     X = np.empty((n, len(ukf.x)))
     tau = np.empty(n)
     X[0] = ukf.x
-    tau[0] = model.outputs(ukf.x[:4])[2]
+    tau[0] = ukf.model.outputs(ukf.x[:4])[2]
     for k in range(1, n):
-        out = ukf.step(run.p_measured[k], run.u[k - 1],
+        out = ukf.step(pressures[k], commands[k - 1],
                        None if supply is None else float(supply[k - 1]))
         X[k] = out.x
         tau[k] = out.torque
-    return Estimates(X[:, :4], tau, X[:, 4:] if bias_states is not None else None)
+    return X, tau
 
 
 def model_alone_effects(extensions: Effects) -> Effects:

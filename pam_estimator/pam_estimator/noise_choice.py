@@ -27,7 +27,7 @@ from pam_model.identification.fit_result import NotIdentifiable
 from pam_model.identification.friction_fit import free_runs
 from pam_model.model import PamModel
 
-from .evaluation import read_pressures
+from .evaluation import filter_samples, read_pressures
 from .pam_ukf import DEFAULT_TUNING, PamUkf, UkfTuning
 
 __all__ = ['CANDIDATES', 'MARGIN', 'NoiseChoice', 'angle_rms', 'choose_velocity_noise', 'pick',
@@ -78,11 +78,7 @@ def angle_rms(record, model: PamModel, extensions: Effects,
     ukf = PamUkf(model=replace(model, locked=False), tuning=tuning,
                  x0=(float(record.psi[0]), float(record.psi_dot[0]), float(p0[0]),
                      float(p0[1])), extensions=extensions)
-    n = len(record.t)
-    psi = np.empty(n)
-    psi[0] = ukf.x[0]
-    for k in range(1, n):
-        psi[k] = ukf.step(record.P[k], record.u[k - 1]).x[0]
+    psi = filter_samples(ukf, record.P, record.u)[0][:, 0]
     return float(np.sqrt(np.mean((psi - record.psi) ** 2)))
 
 
