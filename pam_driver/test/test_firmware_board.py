@@ -108,6 +108,52 @@ def test_session_stream_and_commands(tmp_path):
         board.close()
 
 
+def test_received_bytes_garbage_split_and_corrupted_frames(tmp_path):
+    """The firmware takes a frame whole once its last byte is in, and hands anything else to its
+    resynchronising decoder: garbage before a frame, a frame written in pieces, a corrupted
+    frame or a bad length just before a good one, back-to-back frames in one write."""
+    with SimBoard(tmp_path, VENTED, eeprom=image(safe_code=(100, 200))) as sim:
+        sim.wait_status(lambda s: s['dac_codes'] == [100, 200], 5.0, 'the safe output at boot')
+        board = bt.Board(sim.link)
+        board.hello()
+        base = board.heartbeat()
+
+        def write(data: bytes) -> None:
+            os.write(board.fd, data)
+            board._last_sent = time.monotonic()
+
+        def applied(codes, what):
+            sim.wait_status(lambda s: s['dac_codes'] == codes, 2.0, what)
+
+        def cmd(u1, u2, seq=7) -> bytes:
+            return proto.encode_frame(proto.COMMAND, seq, struct.pack('<HH', u1, u2))
+
+        write(b'\x00\x11' + bytes((proto.SYNC[0], 0x22, proto.SYNC[0])) + cmd(1001, 1002))
+        applied([1001, 1002], 'a COMMAND after garbage')
+        frame = cmd(1101, 1102)
+        for a, b in ((0, 1), (1, 5), (5, 9), (9, len(frame))):  # SYNC, header, payload, CRC
+            write(frame[a:b])
+            time.sleep(0.02)
+        applied([1101, 1102], 'a COMMAND written in pieces')
+        bad = bytearray(cmd(1201, 1202))
+        bad[-1] ^= 0xFF                                 # its CRC broken
+        write(bytes(bad) + cmd(1301, 1302))
+        applied([1301, 1302], 'the COMMAND after a corrupted one')
+        long = bytearray(cmd(1401, 1402))
+        long[5] = 200                                   # a length beyond 64
+        write(bytes(long) + cmd(1501, 1502))
+        applied([1501, 1502], 'the COMMAND after a bad length')
+        write(b''.join(cmd(1600 + k, 1700 + k, seq=k) for k in range(5)))
+        applied([1604, 1704], 'the newest of five COMMANDs in one write')
+        hb = heartbeat_where(board, lambda hb: hb['dac'] == [1604, 1704])
+        # every good frame counted (the keepalive HEARTBEATs too), the corrupted one not
+        assert 2 <= hb['crc_errors'] - base['crc_errors'] <= 10, (base, hb)
+        assert hb['host_frames'] - base['host_frames'] >= 9
+        got = samples(board.frames(0.3))
+        assert len(got) >= 250                          # still streaming, in sync
+        board.close()
+
+
 def test_calibration_eeprom_and_auto_zero(tmp_path):
     # the transducers read 0.05 V high (P1) and 0.03 V low (P2): 41 and -25 counts
     plant = (*VENTED, '--offset-volts', '0.05', '-0.03')

@@ -4,14 +4,16 @@
  *   Timer1 CTC 1 kHz  compare A ISR: reads the 4 ADC channels (MCP3208 on SPI, 2 MHz), the
  *                     encoder count and the e-stop pin into a snapshot, flags a tick (overrun
  *                     counted if the previous one was not consumed); compare B (0.8 ms): the
- *                     moment to send a heartbeat due (its bytes then share two tick periods);
+ *                     moment to send a heartbeat due (its bytes then share two tick periods),
+ *                     in a period that has received no frame yet (at most 20 ms late);
  *   INT4/INT5         encoder A/B, any edge: x4 quadrature decoding;
  *   USART0 1 Mbaud    (U2X, UBRR 1: exact) RX and UDRE interrupts over two 256-byte rings,
  *                     hand-written (no SREG change on their usual path);
- *   main loop         sleeps until an ISR flags work in GPIOR0; feeds received bytes to the core
- *                     (a tick waiting goes first), writes a COMMAND to the MCP4922 at once if it
- *                     is the period's first, the newest of a burst at the next tick; runs the
- *                     core's tick, resets the watchdog.
+ *   main loop         sleeps until an ISR flags work in GPIOR0 (the RX ISR: once a whole frame
+ *                     is in); feeds received frames to the core whole (a tick waiting goes
+ *                     first), writes a COMMAND to the MCP4922 at once if it is the period's
+ *                     first, the newest of a burst at the next tick; runs the core's tick,
+ *                     resets the watchdog.
  * The watchdog (30 ms, system-reset mode) is reset only by the main loop after a tick: a hung
  * loop or a dead timer resets the board into its safe output. Cycle counts: README.md. */
 #include <avr/eeprom.h>
@@ -44,6 +46,8 @@ uint8_t mcusr_at_reset __attribute__((section(".noinit")));
  * the high byte as a constant) and wraps by itself. */
 static volatile uint8_t rx_ring[UART_RX_SIZE] __attribute__((aligned(256)));
 static volatile uint8_t rx_head, rx_tail;
+static volatile uint8_t rx_wake = FRAME_HEADER; /* the RX ISR sets WORK_RX when rx_head reaches
+                                         * it: the main loop waits for a whole frame (rx_drain) */
 static volatile uint8_t tx_ring[UART_TX_SIZE] __attribute__((aligned(256)));
 static volatile uint8_t tx_head, tx_tail;
 static volatile uint8_t uart_errors;    /* wraps: the main loop accumulates it */
@@ -62,6 +66,8 @@ static volatile uint8_t enc_state;
 static volatile board_inputs_t snapshot;
 static volatile uint16_t overruns;
 static uint8_t uart_errors_seen;
+#define HEARTBEAT_WAIT 20u              /* tick periods a heartbeat due may wait for a quiet one */
+static uint8_t heartbeat_waited;
 
 /* Reset cause, then the watchdog off before anything else (it stays on after a watchdog reset). */
 void early_init(void) __attribute__((naked, used, section(".init3")));
@@ -73,9 +79,10 @@ void early_init(void)
 }
 
 /* ---- UART --------------------------------------------------------------------------------------- */
-/* A received byte into the RX ring (framing / overrun errors and a full ring counted) and the
- * main loop's WORK_RX flag. Hand-written: 1 Mbaud is a byte every 160 cycles; no instruction of
- * the usual path changes SREG (cpse, sbrc, ld/st, sbi), so SREG is saved only on the error paths. */
+/* A received byte into the RX ring (framing / overrun errors and a full ring counted); the main
+ * loop's WORK_RX flag when the ring's head reaches rx_wake. Hand-written: 1 Mbaud is a byte every
+ * 160 cycles; no instruction of the usual path changes SREG (cpse, sbrc, ld/st, sbi), so SREG is
+ * saved only on the error paths. */
 ISR(USART0_RX_vect, ISR_NAKED)
 {
     __asm__ volatile(
@@ -101,6 +108,9 @@ ISR(USART0_RX_vect, ISR_NAKED)
         "out __SREG__, r31\n\t"
         "rjmp 4f\n\t"
         "2: sts %[head], r30\n\t"
+        "lds r24, %[wake]\n\t"       /* the fill the main loop waits for: wake it */
+        "cpse r30, r24\n\t"
+        "rjmp 4f\n\t"
         "sbi %[gpior], %[work_rx]\n\t"
         "4: pop r31\n\t"
         "pop r30\n\t"
@@ -115,7 +125,7 @@ ISR(USART0_RX_vect, ISR_NAKED)
         :: [ucsra] "n" (_SFR_MEM_ADDR(UCSR0A)), [udr] "n" (_SFR_MEM_ADDR(UDR0)),
            [fe] "n" (FE0), [dor] "n" (DOR0), [errors] "i" (&uart_errors),
            [head] "i" (&rx_head), [tail] "i" (&rx_tail), [ring] "i" (rx_ring),
-           [gpior] "n" (_SFR_IO_ADDR(GPIOR0)), [work_rx] "n" (WORK_RX));
+           [wake] "i" (&rx_wake), [gpior] "n" (_SFR_IO_ADDR(GPIOR0)), [work_rx] "n" (WORK_RX));
 }
 
 /* One byte of the TX ring per interrupt, the firmware's hottest code (a byte every 160 cycles
@@ -147,6 +157,26 @@ ISR(USART0_UDRE_vect, ISR_NAKED)
            [idle] "n" (UCSR0B_IDLE));
 }
 
+/* Copies n bytes from X (src) to Y (dst), each through the split CRC table of crc16.h on the way
+ * (high / low: the CRC's halves): 20 cycles a byte. LOAD reads a byte from X into r24 and STORE
+ * writes r24 at Y, each advancing its pointer: X+ / Y+, or for a ring's side only the low address
+ * byte (the ring is 256-byte aligned: its index wraps by itself). Z is the table's address. */
+#define COPY_WITH_CRC(LOAD, STORE, src, dst, n, high, low)                                       \
+    __asm__ volatile(                                                                            \
+        "1: " LOAD STORE                                                                         \
+        "eor r24, %[hi]\n\t"                                                                     \
+        "mov r30, r24\n\t"                                                                       \
+        "ldi r31, hi8(%[th])\n\t"                                                                \
+        "lpm %[hi], Z\n\t"                                                                       \
+        "eor %[hi], %[lo]\n\t"                                                                   \
+        "ldi r31, hi8(%[tl])\n\t"                                                                \
+        "lpm %[lo], Z\n\t"                                                                       \
+        "dec %[k]\n\t"                                                                           \
+        "brne 1b\n\t"                                                                            \
+        : [hi] "+r" (high), [lo] "+r" (low), [k] "+r" (n), "+x" (src), "+y" (dst)               \
+        : [th] "i" (crc16_table_high), [tl] "i" (crc16_table_low)                                \
+        : "r24", "r30", "r31", "memory")
+
 /* A frame into the TX ring, its CRC-16 computed on the way (core/board.h: bytes are the header
  * and the payload; SYNC not in the CRC). Only the main loop writes tx_head and only the UDRE ISR
  * tx_tail (one byte each: atomic), so no interrupt is masked: the bytes first, then the head,
@@ -166,29 +196,96 @@ static void uart_tx(const uint8_t *bytes, uint8_t n, void *ctx)
     volatile uint8_t *ring = tx_ring + head;
     n = (uint8_t)(n - 2);
     uint8_t high = 0xFF, low = 0xFF;    /* CRC16_INIT */
-    /* per byte: to the ring (Y: its high address byte fixed, the low one wraps) and through
-     * the split CRC table (Z: the index is the low address byte): 20 cycles */
-    __asm__ volatile(
-        "1: ld r24, X+\n\t"
-        "st Y, r24\n\t"
-        "inc r28\n\t"
-        "eor r24, %[high]\n\t"
-        "mov r30, r24\n\t"
-        "ldi r31, hi8(%[th])\n\t"
-        "lpm %[high], Z\n\t"
-        "eor %[high], %[low]\n\t"
-        "ldi r31, hi8(%[tl])\n\t"
-        "lpm %[low], Z\n\t"
-        "dec %[n]\n\t"
-        "brne 1b\n\t"
-        : [high] "+r" (high), [low] "+r" (low), [n] "+r" (n), "+x" (bytes), "+y" (ring)
-        : [th] "i" (crc16_table_high), [tl] "i" (crc16_table_low)
-        : "r24", "r30", "r31", "memory");
+    /* to the ring: Y's low address byte wraps */
+    COPY_WITH_CRC("ld r24, X+\n\t", "st Y, r24\n\tinc r28\n\t", bytes, ring, n, high, low);
     head = (uint8_t)(uintptr_t)ring;
     tx_ring[head++] = low;
     tx_ring[head++] = high;
     tx_head = head;
     UCSR0B = UCSR0B_SENDING;
+}
+
+/* The frame of `size` bytes at the RX ring's tail (SYNC and length checked by rx_need) into the
+ * decoder's buffer in one pass, its CRC computed on the way (20 cycles a byte; the byte-wise
+ * decoder, the main loop woken by every byte, took about 60 more a byte), then handled as the
+ * byte-wise decoder would at the frame's last byte: board_rx_frame_end with FRAME_READY, or
+ * FRAME_RESYNC on a CRC error (the decoder then resynchronises in its buffer, counting the
+ * error). */
+__attribute__((noinline)) static void rx_frame(uint8_t tail, uint8_t size)
+{
+    frame_decoder_t *d = &board.rx;
+    uint8_t *buf = d->buf;
+    buf[0] = FRAME_SYNC0;
+    buf[1] = FRAME_SYNC1;
+    const volatile uint8_t *ring = rx_ring + (uint8_t)(tail + 2);
+    uint8_t *out = buf + 2;
+    uint8_t n = (uint8_t)(size - 4);    /* type, seq, length and the payload: under the CRC */
+    uint8_t high = 0xFF, low = 0xFF;    /* CRC16_INIT */
+    /* from the ring: X's low address byte wraps */
+    COPY_WITH_CRC("ld r24, X\n\tinc r26\n\t", "st Y+, r24\n\t", ring, out, n, high, low);
+    out[0] = rx_ring[(uint8_t)(tail + size - 2)];
+    out[1] = rx_ring[(uint8_t)(tail + size - 1)];
+    d->n = size;
+    d->crc = (uint16_t)((uint16_t)high << 8 | low);
+    board_rx_frame_end(&board, d->crc == get_u16(out) ? FRAME_READY : FRAME_RESYNC);
+}
+
+/* The bytes the RX ring must hold from its tail before the frame that starts there can go to
+ * rx_frame whole (its SYNC, header and length read as far as they are in); 0: the byte at the
+ * tail goes to the byte-wise decoder (one that holds the rest of a resynchronisation, garbage,
+ * a bad SYNC or length). */
+static uint8_t rx_need(uint8_t tail, uint8_t avail)
+{
+    if (board.rx.n || rx_ring[tail] != FRAME_SYNC0)
+        return 0;
+    if (avail >= 2 && rx_ring[(uint8_t)(tail + 1)] != FRAME_SYNC1)
+        return 0;
+    if (avail < FRAME_HEADER)
+        return FRAME_HEADER;
+    uint8_t length = rx_ring[(uint8_t)(tail + 5)];
+    return length > FRAME_MAX_PAYLOAD ? 0 : (uint8_t)(FRAME_OVERHEAD + length);
+}
+
+static void dac_write(const uint16_t code[2]);
+static uint8_t dac_this_tick;           /* a COMMAND went to the DAC in this tick period */
+static uint8_t frames_this_tick;        /* whole frames received in this tick period */
+
+/* The received bytes to the core: whole frames at once, the rest byte by byte; until the ring
+ * holds a whole frame the main loop sleeps (rx_wake: the RX ISR wakes it at the frame's last
+ * byte, not at every byte). A COMMAND goes to the valves at once if it is this tick period's
+ * first; a later one (a burst of frames: each supersedes the one before) at the next tick, the
+ * newest only: at most two DAC writes a period, whatever the host sends. A tick waiting goes
+ * first (a burst at the line rate): WORK_RX stays set. */
+static void rx_drain(void)
+{
+    uint8_t tail = rx_tail;
+    for (;;) {
+        uint8_t avail = (uint8_t)(rx_head - tail);
+        /* an empty ring: the next frame's header (every frame has one and two CRC bytes) */
+        uint8_t need = avail ? rx_need(tail, avail) : FRAME_HEADER;
+        if (!need) {
+            board_rx_byte(&board, rx_ring[tail]);
+            rx_tail = ++tail;
+        } else if (avail >= need) {
+            rx_frame(tail, need);
+            rx_tail = tail = (uint8_t)(tail + need);
+            frames_this_tick++;
+        } else {
+            rx_wake = (uint8_t)(tail + need);
+            if ((uint8_t)(rx_head - tail) < need)   /* else the byte came before rx_wake */
+                return;
+            continue;
+        }
+        if (board.dac_dirty && !dac_this_tick) {
+            board.dac_dirty = 0;
+            dac_this_tick = 1;
+            dac_write(board.dac);
+        }
+        if (GPIOR0 & _BV(WORK_TICK)) {
+            GPIOR0 |= _BV(WORK_RX);
+            return;
+        }
+    }
 }
 
 static void uart_init(void)
@@ -321,7 +418,6 @@ int main(void)
     wdt_reset();
     set_sleep_mode(SLEEP_MODE_IDLE);
     sleep_enable();                     /* SE stays set: sleep only ever runs below */
-    uint8_t dac_this_tick = 0;          /* a COMMAND went to the DAC in this tick period */
     GPIOR0 = 0;
     sei();
 
@@ -335,24 +431,8 @@ int main(void)
         }
         sei();
         if (GPIOR0 & _BV(WORK_RX)) {
-            GPIOR0 &= (uint8_t)~_BV(WORK_RX);  /* before the ring is read: a later byte sets it */
-            uint8_t tail = rx_tail;
-            while (tail != rx_head) {
-                board_rx_byte(&board, rx_ring[tail]);
-                rx_tail = ++tail;
-                /* a COMMAND to the valves now if it is this tick period's first; a later one
-                 * (a burst of frames: each supersedes the one before) at the next tick, the
-                 * newest only: at most two DAC writes a period, whatever the host sends */
-                if (board.dac_dirty && !dac_this_tick) {
-                    board.dac_dirty = 0;
-                    dac_this_tick = 1;
-                    dac_write(board.dac);
-                }
-                if (GPIOR0 & _BV(WORK_TICK)) {  /* a burst at the line rate: the tick first */
-                    GPIOR0 |= _BV(WORK_RX);
-                    break;
-                }
-            }
+            GPIOR0 &= (uint8_t)~_BV(WORK_RX);  /* before the ring is read: a later wake sets it */
+            rx_drain();
         }
         if (GPIOR0 & _BV(WORK_TICK)) {
             board_inputs_t in;
@@ -366,6 +446,7 @@ int main(void)
             }
             board_tick(&board, &in);
             dac_this_tick = 0;
+            frames_this_tick = 0;
             if (board.dac_dirty) {
                 board.dac_dirty = 0;
                 dac_write(board.dac);
@@ -382,7 +463,16 @@ int main(void)
         }
         if (GPIOR0 & _BV(WORK_HEARTBEAT)) {
             GPIOR0 &= (uint8_t)~_BV(WORK_HEARTBEAT);
-            board_send_heartbeat(&board);
+            /* a heartbeat due goes at the moment of a period that has received no frame yet
+             * (its 40 bytes cost about 1 500 cycles, a COMMAND about 1 400: the two are not
+             * stacked on a period that may get another COMMAND), at most HEARTBEAT_WAIT
+             * periods late */
+            if (board.heartbeat_due && frames_this_tick && heartbeat_waited < HEARTBEAT_WAIT) {
+                heartbeat_waited++;
+            } else {
+                heartbeat_waited = 0;
+                board_send_heartbeat(&board);
+            }
         }
     }
 }
