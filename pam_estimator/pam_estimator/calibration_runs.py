@@ -37,7 +37,7 @@ def identified_ukf_parameters(directory) -> dict:
               'valve_map': str(directory / KAPPA_FILE),
               'model_extensions': str(directory / EXTENSIONS_FILE)}
     if (directory / TUNING_FILE).exists():
-        values['process_noise'] = list(identified_tuning(directory).Q)
+        values['process_noise'] = list(load_tuning(directory / TUNING_FILE).Q)
     return values
 
 
@@ -47,6 +47,13 @@ def identified_tuning(directory):
     from .pam_ukf import DEFAULT_TUNING
     path = Path(directory) / TUNING_FILE
     return load_tuning(path) if path.exists() else DEFAULT_TUNING
+
+
+def save_tuning(tuning, path, name: str = 'identified') -> None:
+    """Write the layout load_tuning reads: name and process_noise, the tuning's Q (a
+    pam_estimator.pam_ukf.UkfTuning)."""
+    Path(path).write_text(yaml.safe_dump(
+        {'name': name, 'process_noise': [float(q) for q in tuning.Q]}, sort_keys=False))
 
 
 def load_tuning(path):
@@ -140,9 +147,8 @@ def write_identification(ident, report: str, out_dir, name: str = 'identified',
         save_extensions(ident.extensions, staging / EXTENSIONS_FILE, name=name)
         (staging / REPORT_FILE).write_text(report + '\n')
         if tuning is not None:
-            (staging / TUNING_FILE).write_text(yaml.safe_dump(
-                {'name': name, 'process_noise': [float(q) for q in tuning.Q]}, sort_keys=False))
-            if identified_tuning(staging).Q != tuple(float(q) for q in tuning.Q):
+            save_tuning(tuning, staging / TUNING_FILE, name=name)
+            if load_tuning(staging / TUNING_FILE).Q != tuple(float(q) for q in tuning.Q):
                 raise ValueError(f'{TUNING_FILE}: does not read back as written')
         load_parameters(staging / PARAMS_FILE)        # what ukf_node will load
         load_valve_map(staging / KAPPA_FILE)

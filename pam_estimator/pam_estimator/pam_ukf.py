@@ -31,6 +31,7 @@ from numba import njit
 
 from pam_model.effects import HYSTERESIS_PRESSURE, Effects, MaxwellSlip, ValveLag
 from pam_model.effects_physics import (
+    band_scale,
     bouc_wen_advance,
     bouc_wen_update,
     maxwell_slip_update,
@@ -290,7 +291,7 @@ class EstimatorEffects(NamedTuple):
 def bouc_wen_force(P, loop, z):
     """N: the Bouc-Wen loop's force B_w c(P) z of a muscle at pressure P (Pa abs) with state z
     (-); loop: an EstimatorEffects."""
-    return loop.bouc_wen_band * (max(P - loop.p_out, 0.0) / (HYSTERESIS_PRESSURE - loop.p_out)) * z
+    return loop.bouc_wen_band * band_scale(P, loop.p_out, HYSTERESIS_PRESSURE) * z
 
 
 @njit(cache=True)

@@ -250,8 +250,10 @@ def lag_factor(h: float, tau: float) -> float:
 
 
 def pressure_scale(P, p_out: float) -> np.ndarray:
-    """c(P) = max(P - P_out, 0) / (500 kPa - P_out) (-) of the hysteresis bands, P in Pa abs."""
-    return np.maximum(np.asarray(P, dtype=float) - p_out, 0.0) / (HYSTERESIS_PRESSURE - p_out)
+    """c(P) = max(P - P_out, 0) / (500 kPa - P_out) (-) of the hysteresis bands, P in Pa abs (an
+    array or a number): the compiled kernel effects_physics.band_scale element by element."""
+    return np.vectorize(effects_physics.band_scale, otypes=[float])(
+        np.asarray(P, dtype=float), p_out, HYSTERESIS_PRESSURE)
 
 
 def sanitised_voltages(u) -> np.ndarray:

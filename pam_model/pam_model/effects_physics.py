@@ -75,6 +75,14 @@ def ordered_sum(values, n):
 
 
 @njit(cache=True)
+def band_scale(P, p_out, p_band):
+    """c(P) (-) = max(P - P_out, 0) / (p_band - P_out): a hysteresis band's scale with the gauge
+    pressure (1 at p_band, 0 vented), P, P_out and p_band in Pa abs; the one kernel of it for the
+    plant's loops, their fits and the UKF's."""
+    return max(P - p_out, 0.0) / (p_band - p_out)
+
+
+@njit(cache=True)
 def maxwell_slip_update(s, P, slip, stiffness, p_out, p_band, anchor, force):
     """One sample of Maxwell-slip hysteresis for each muscle i (pam_model.effects.MaxwellSlip):
     element j with stiffness k_j (N/N) and slip force f_j c(P_i) (N), c(P) = max(P - P_out, 0) /
@@ -84,7 +92,7 @@ def maxwell_slip_update(s, P, slip, stiffness, p_out, p_band, anchor, force):
     count, n = anchor.shape
     element = np.empty(n)
     for i in range(count):
-        c = max(P[i] - p_out, 0.0) / (p_band - p_out)
+        c = band_scale(P[i], p_out, p_band)
         for j in range(n):
             limit = slip[j] * c
             f = min(max(stiffness[j] * (s[i] - anchor[i, j]), -limit), limit)
@@ -126,7 +134,7 @@ def bouc_wen_update(drive, drive_before, z, band, P, p_out, p_band, force):
         dx = drive[i] - drive_before[i]
         drive_before[i] = drive[i]
         z[i] = bouc_wen_advance(z[i], dx)
-        force[i] = band * (max(P[i] - p_out, 0.0) / (p_band - p_out)) * z[i]
+        force[i] = band * band_scale(P[i], p_out, p_band) * z[i]
 
 
 @njit(cache=True)

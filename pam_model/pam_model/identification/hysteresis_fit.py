@@ -32,7 +32,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import butter, sosfiltfilt
 
 from ..effects import HYSTERESIS_PRESSURE
-from ..effects_physics import bouc_wen_advance
+from ..effects_physics import band_scale, bouc_wen_advance
 from ..physics_vectorised import muscle_forces
 from .fit_result import Estimate, GroupFit, standard_errors
 from .force_fit import fit_forces, regressors, usable_records
@@ -59,7 +59,7 @@ def slip_step(anchor, s, P, travel, p_out):
     moves the anchors (n,) N in place with nominal force s (N) at pressure P (Pa abs), travel
     Delta (N); returns the force (N)."""
     n = anchor.shape[0]
-    c = max(P - p_out, 0.0) / (HYSTERESIS_PRESSURE - p_out)
+    c = band_scale(P, p_out, HYSTERESIS_PRESSURE)
     total = 0.0
     for j in range(n):
         slip = 1.0 / n
@@ -96,7 +96,7 @@ def pressure_loop_response(P, travel, p_out, out):
         x = P[k] / travel
         z = bouc_wen_advance(z, x - before)
         before = x
-        out[k] = max(P[k] - p_out, 0.0) / (HYSTERESIS_PRESSURE - p_out) * z
+        out[k] = band_scale(P[k], p_out, HYSTERESIS_PRESSURE) * z
     return out
 
 
