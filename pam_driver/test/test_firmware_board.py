@@ -9,10 +9,12 @@ from __future__ import annotations
 import importlib
 import os
 import struct
+import subprocess
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 # the board's tools are files of the repository (pam_driver/firmware/tools), not a package
@@ -152,6 +154,51 @@ def test_received_bytes_garbage_split_and_corrupted_frames(tmp_path):
         got = samples(board.frames(0.3))
         assert len(got) >= 250                          # still streaming, in sync
         board.close()
+
+
+def test_heartbeats_keep_their_rate_under_a_command_every_period(tmp_path):
+    """A DEVICE_HEARTBEAT due waits for a tick period that has received no frame before 0.8 ms,
+    at most 20 periods: with a host writing COMMANDs faster than the periods (no period without
+    one) the heartbeats still come at 10 Hz, none later than 20 ms after its moment."""
+    with SimBoard(tmp_path, VENTED) as sim:
+        sim.wait_status(lambda s: s['ms'] > 100, 5.0, 'the board running')
+        board = bt.Board(sim.link)
+        board.hello()
+        board.decoder = proto.Decoder()
+        arrivals = []
+        end = time.monotonic() + 2.0
+        k = 0
+        while time.monotonic() < end:                   # about three COMMANDs a period
+            command(board, 1000 + k % 500, 2000)
+            k += 1
+            try:                                        # not Board._read: it sleeps 2 ms
+                frames = board.decoder.feed(os.read(board.fd, 4096))
+            except BlockingIOError:
+                frames = []
+            arrivals += [time.monotonic() for f in frames if f.type == proto.DEVICE_HEARTBEAT]
+            time.sleep(0.0002)
+        status = sim.status()
+        board.close()
+    gaps = np.diff(arrivals)
+    assert k > 2000 and 17 <= len(arrivals) <= 21, (k, len(arrivals))
+    assert gaps.max() < 0.1 + 0.02 + 0.05, gaps      # 100 ms, 20 ms of waiting, the host's lag
+    assert status['command_frames'] >= 0.9 * k
+
+
+def test_the_build_refuses_code_that_uses_the_uart_isrs_registers(tmp_path):
+    """r2-r4 are the UART ISRs' (-ffixed-r2/r3/r4): built without reserving them, the compiler
+    uses them elsewhere and the build's check of the linked ELF fails, leaving no ELF behind."""
+    done = subprocess.run(['make', '-s', '-C', str(FIRMWARE), f'BUILD={tmp_path}', 'ISR_REGS=',
+                           str(tmp_path / 'pam_board.elf')],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode != 0
+    assert 'r2-r4 used outside the UART ISRs' in done.stdout + done.stderr
+    assert not (tmp_path / 'pam_board.elf').exists()
+    done = subprocess.run(['make', '-s', '-C', str(FIRMWARE), f'BUILD={tmp_path}',
+                           str(tmp_path / 'pam_board.elf')],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert (tmp_path / 'pam_board.elf').exists()
 
 
 def test_calibration_eeprom_and_auto_zero(tmp_path):
