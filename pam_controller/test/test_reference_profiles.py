@@ -1,5 +1,6 @@
 """reference_node's profiles (no ROS) and the node as a real process."""
 
+import itertools
 import math
 
 import numpy as np
@@ -50,3 +51,53 @@ def test_reference_node_publishes(node_process, probe):
     msgs = got.messages()
     assert all(m.mode == Reference.TORQUE for m in msgs)
     assert max(m.value for m in msgs) > 1.0 and min(m.value for m in msgs) < -1.0
+
+
+def test_reference_node_on_simulated_time_follows_clock(node_process, probe):
+    """use_sim_time: the profile ticks on /clock, stamped with it, and stops while /clock stops:
+    100 Hz of simulated time, not of the wall clock. /clock goes slowly until the first reference
+    arrives (discovery), then covers 2 s four times as fast as real time (a wall-clock timer would
+    give about 50 references). On rclpy's EventsExecutor this fails about one run in two:
+    repeated stamps (pam_common.executors)."""
+    import time
+
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+
+    got = probe.subscribe(Reference, '/pam/reference', depth=1000)
+    clock = probe.publisher(Clock, '/clock')
+    node_process('reference_node', 'pam_controller', '-p', 'use_sim_time:=true')
+
+    def tick(k: int) -> None:                    # /clock at k ms
+        clock.publish(Clock(clock=Time(sec=k // 1000, nanosec=(k % 1000) * 1_000_000)))
+
+    k, end = 0, time.monotonic() + 30.0
+    while not got.messages():
+        assert time.monotonic() < end, 'no reference within 30 s of /clock at 0.2x real time'
+        k += 1
+        tick(k)
+        time.sleep(0.005)
+    first = k
+    start = time.monotonic()
+    for n in range(1, 2001):                     # 2 s of simulated time
+        tick(first + n)
+        time.sleep(max(0.0, start + n * 0.25e-3 - time.monotonic()))
+    took = time.monotonic() - start
+    last = (first + 2000) * 1e-3
+    deadline = time.monotonic() + 10.0
+    while stamp_s(got.messages()[-1]) < last - 0.011:
+        assert time.monotonic() < deadline, f'no reference near {last:.3f} s of /clock'
+        time.sleep(0.01)
+    time.sleep(0.6)       # /clock stopped: so does the profile (no repeated or later stamp)
+    stamps = [stamp_s(m) for m in got.messages() if stamp_s(m) > first * 1e-3]
+    assert took < 1.0, f'/clock took {took:.2f} s to cover 2 s'
+    # a node that takes /clock more slowly than it comes skips ticks (at most 201; 167-178 with
+    # two CPU-bound processes beside it), a wall-clock timer would tick about 50 times
+    assert 100 <= len(stamps) <= 201, (len(stamps), stamps[:5], stamps[-5:])
+    assert stamps[-1] <= last + 1e-9, (stamps[-5:], last)
+    repeated = [(a, b) for a, b in itertools.pairwise(stamps) if b <= a]
+    assert not repeated, repeated
+
+
+def stamp_s(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
