@@ -81,9 +81,10 @@ MIN_RECORDED = 0.98
 MIN_STEP_RATE = 250.0
 SAMPLE_BYTES = 60          # a lower bound of one sample's RTPS message on the wire (bytes)
 #: Lockstep: the plant steps when the command of its last sample arrives (simulated time, from
-#: /clock for reference_node; pi_node's wall-clock feedback timeout out of the way, as in
-#: pam_bringup.lockstep_run), so the figures do not depend on the machine's load.
-LOCKSTEP = {'sim_node': ['-p', 'timing:=lockstep', '-p', 'publish_clock:=true'],
+#: /clock for reference_node, at its 100 Hz; pi_node's wall-clock feedback timeout out of the
+#: way, as in pam_bringup.lockstep_run), so the figures do not depend on the machine's load.
+LOCKSTEP = {'sim_node': ['-p', 'timing:=lockstep', '-p', 'publish_clock:=true',
+                         '-p', 'clock_rate:=100.0'],
             'pi_node': ['-p', 'feedback_timeout:=30.0'],
             'reference_node': ['-p', 'use_sim_time:=true']}
 WATCH = str(Path(__file__).with_name('two_hosts_support.py'))

@@ -15,7 +15,13 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
-from pam_common.joint_states import check_joint_states, joint_state_params
+from pam_common.joint_states import (
+    DEFAULT_RATE,
+    above_sample_rate,
+    check_joint_states,
+    joint_state_params,
+    joint_states_every,
+)
 from pam_common.node_params import (
     HARDWARE_ID_PARAM,
     U_MAX,
@@ -61,6 +67,7 @@ JOINT_MODES = ('free', 'locked')
 TIMINGS = ('realtime', 'lockstep')
 
 RATE_RANGE = (100.0, 10000.0)   # Hz
+CLOCK_RATE_RANGE = (1.0, 10000.0)  # Hz
 BITS_RANGE = (-1, 32)
 SEED_RANGE = (0, 2 ** 31 - 1)
 NOISE_RANGE = (-1.0, 1.0e6)     # Pa
@@ -124,8 +131,14 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "scenario's effects, if any; else nominal) through the pressure sensor model, "
               'stamped like pressures: a supply-pressure transducer.'),
     ParamSpec('publish_clock', False, 'bool', '',
-              'Publish /clock (rosgraph_msgs/Clock) with the stamp of every sample '
-              '(simulated time t_k in lockstep).'),
+              'Publish /clock (rosgraph_msgs/Clock) with the stamp of the samples (simulated time '
+              't_k in lockstep), at clock_rate.'),
+    ParamSpec('clock_rate', DEFAULT_RATE, 'double', 'Hz',
+              'With publish_clock: /clock with 1 sample in round(rate / clock_rate) (the '
+              'default: every sample); at most the sample rate. A node on simulated time pays '
+              "for every /clock message (rclpy's default executor: about 250 us of CPU each) and "
+              'needs it only as often as its timers fire: 100 for reference_node at 100 Hz.',
+              range=CLOCK_RATE_RANGE),
     ParamSpec('lockstep_timeout', 0.5, 'double', 's',
               'Lockstep only: while waiting for a command, re-publish the current sample after '
               'this long so a late-joining controller can start; 0: never.',
@@ -155,7 +168,7 @@ SUMMARY = (
     '  publishes   joint_states    sensor_msgs/JointState           joint_measured for the '
     'standard tools',
     '  publishes   /diagnostics    diagnostic_msgs/DiagnosticArray  about 1 Hz',
-    '  publishes   /clock          rosgraph_msgs/Clock              if publish_clock',
+    '  publishes   /clock          rosgraph_msgs/Clock              if publish_clock (clock_rate)',
     '  publishes   supply_pressure sensor_msgs/FluidPressure        P_tank (Pa abs), if '
     'publish_supply_pressure',
 )
@@ -184,6 +197,7 @@ class SimConfig:
     lockstep_timeout: float
     max_catch_up: int
     publish_clock: bool
+    clock_every: int                    # /clock with the samples k = 0, n, 2n, ... (n >= 1)
     publish_supply_pressure: bool
     joint_mode: str                     # 'free' or 'locked'
     plant_parameters: str
@@ -233,6 +247,9 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
     if not values['valve_map'].strip():
         fail('valve_map', "empty; use 'default' or a CSV path")
     check_joint_states(values, values['rate'])
+    if above_sample_rate(values['clock_rate'], values['rate']):
+        fail('clock_rate', f"{values['clock_rate']:g} Hz is above the sample rate "
+             f"{values['rate']:g} Hz (at most one /clock per sample)")
     check_realtime(values)
 
     from pam_model.mismatch import load_scenario
@@ -291,7 +308,9 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
         timing=v['timing'], rate=v['rate'], initial_state=tuple(v['initial_state']),
         initial_command=(v['initial_command'][0], v['initial_command'][1]), seed=v['seed'],
         lockstep_timeout=v['lockstep_timeout'], max_catch_up=v['max_catch_up'],
-        publish_clock=v['publish_clock'], publish_supply_pressure=v['publish_supply_pressure'],
+        publish_clock=v['publish_clock'],
+        clock_every=joint_states_every(v['clock_rate'], v['rate']),
+        publish_supply_pressure=v['publish_supply_pressure'],
         joint_mode=v['joint_mode'], plant_parameters=v['plant_parameters'],
         scenario_name=v['scenario'], frame_id=v['frame_id'], hardware_id=v['hardware_id'],
         joint_name=v['joint_name'], joint_states_rate=v['joint_states_rate'],
@@ -327,7 +346,9 @@ def describe(config: SimConfig) -> list[str]:
         f"u1 {v['initial_command'][0]:g} V, u2 {v['initial_command'][1]:g} V",
     ]
     timing = (f"timing: {v['timing']} at {v['rate']:g} Hz (model step h = {1e3 / v['rate']:g} ms)"
-              + ('; /clock published' if v['publish_clock'] else ''))
+              + (('; /clock published with every sample' if config.clock_every == 1 else
+                  f'; /clock published with 1 sample in {config.clock_every}')
+                 if v['publish_clock'] else ''))
     if v['timing'] == 'realtime':
         timing += (f"; the plant never pauses: up to {v['max_catch_up']} overdue samples wait "
                    'and are published late, older ones are dropped (missed)')

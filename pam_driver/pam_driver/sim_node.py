@@ -20,7 +20,8 @@ Topics (relative names resolve under the node namespace, '/pam' unless remapped 
                                                      rad/s, effort N m, the same stamps; every
                                                      sample, or fewer (joint_states_rate)
     /diagnostics    diagnostic_msgs/DiagnosticArray  published about once a second (absolute name)
-    /clock          rosgraph_msgs/Clock              published with every sample if publish_clock
+    /clock          rosgraph_msgs/Clock              if publish_clock: with 1 sample in
+                                                     round(rate / clock_rate), every by default
     supply_pressure sensor_msgs/FluidPressure        published with every sample if
                                                      publish_supply_pressure: the plant's supply
                                                      pressure P_tank (Pa abs; the effects' droop
@@ -71,7 +72,7 @@ means "for the current step"); the node applies it, steps, and publishes sample 
 with stamp < t_k comes from the past: it is ignored and counted. While waiting, the current sample
 is re-published unchanged (same stamp, same noise draw) every lockstep_timeout s, so a controller
 that joins late can start. Same seed + same commands give bit-identical pressures. With
-publish_clock, /clock carries t_k.
+publish_clock, /clock carries t_k (of 1 sample in round(rate / clock_rate)).
 
 Bad input: non-finite voltages become 0 V (vent), out-of-range ones are clipped to [0, 10] V (by
 SimulatedRig.set_command); they are counted, logged at most once a second, and reported on
@@ -262,7 +263,8 @@ class SimNode(LinkedNode):
                                     sample.counter)
         joint = build_joint(build_header(stamp, self._frame_id), sample.angle, sample.velocity,
                             sample.torque)
-        clock = Clock(clock=stamp) if self._pub_clock is not None else None
+        clock = (Clock(clock=stamp) if self._pub_clock is not None
+                 and (sample.counter - 1) % self.config.clock_every == 0 else None)
         supply = None
         if sample.supply is not None:
             supply = FluidPressure(fluid_pressure=sample.supply,

@@ -32,7 +32,19 @@ def test_contract_parameters_and_defaults():
     assert d['rate'] == 1000.0 and d['lockstep_timeout'] == 0.5
     assert d['quantisation_bits'] == -1 and d['seed'] == 0 and d['publish_clock'] is False
     assert d['timing'] == 'realtime' and d['frame_id'] == 'pam_joint' and d['scenario'] == ''
-    assert d['max_catch_up'] == 10
+    assert d['max_catch_up'] == 10 and d['clock_rate'] == 1000.0
+
+
+@pytest.mark.parametrize(('clock_rate', 'rate', 'every', 'words'), [
+    (1000.0, 1000.0, 1, 'with every sample'),
+    (1000.0, 500.0, 1, 'with every sample'),      # the default, of a slower rig
+    (100.0, 1000.0, 10, 'with 1 sample in 10'),
+    (300.0, 1000.0, 3, 'with 1 sample in 3'),
+])
+def test_clock_rate_decimates_the_samples(clock_rate, rate, every, words):
+    config = build_config({'publish_clock': True, 'clock_rate': clock_rate, 'rate': rate})
+    assert config.clock_every == every
+    assert any(f'/clock published {words}' in line for line in config.summary), config.summary
 
 
 def test_valve_range_agrees_with_pam_model():
@@ -114,6 +126,8 @@ def test_options_reach_the_model():
     ({'seed': -3}, ['seed']),
     ({'max_catch_up': -1}, ['max_catch_up']),
     ({'publish_clock': 'yes'}, ['publish_clock']),
+    ({'clock_rate': 2000.0}, ['clock_rate', 'above the sample rate']),
+    ({'clock_rate': 0.0}, ['clock_rate']),
     ({'frame_id': 3}, ['frame_id', 'string']),
     ({'no_such_parameter': 1}, ['no_such_parameter']),
 ])

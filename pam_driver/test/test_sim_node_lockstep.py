@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 
@@ -22,11 +23,11 @@ def command_for(k: int) -> tuple[float, float]:
 
 
 def run_lockstep(sim_node, probe, helpers, seed: int, noise: float = 2000.0,
-                 steps: int = STEPS, namespace: str = 'pam'):
-    """Drive a fresh lockstep sim_node for `steps` steps; return [(p1, p2)] for k = 0..steps
-    and the probe's collectors."""
+                 steps: int = STEPS, namespace: str = 'pam', args: tuple = ()):
+    """Drive a fresh lockstep sim_node (with `args`) for `steps` steps; return [(p1, p2)] for
+    k = 0..steps and the node."""
     sim = sim_node('-r', f'__ns:=/{namespace}', '-p', 'timing:=lockstep', '-p', f'seed:={seed}',
-                   '-p', f'pressure_noise_std:={noise!r}', '-p', 'lockstep_timeout:=0.2')
+                   '-p', f'pressure_noise_std:={noise!r}', '-p', 'lockstep_timeout:=0.2', *args)
     command = probe.publisher(ValveCommand, f'/{namespace}/valve_command')
     samples: dict[int, tuple[float, float]] = {}
     duplicates_differ: list[int] = []
@@ -77,6 +78,23 @@ def test_lockstep_is_deterministic(sim_node, probe, helpers):
     assert len(set(first)) > STEPS // 2
     assert other != first, 'another seed with sensor noise must give other readings'
     assert all(math.isfinite(v) for pair in first + other for v in pair)
+
+
+def test_lockstep_clock_at_clock_rate(sim_node, probe, helpers):
+    """publish_clock with clock_rate 250 Hz at the 1 kHz rate: /clock carries t_k of the samples
+    k = 0, 4, 8, ... and of no other (a node on simulated time pays for each message)."""
+    from rosgraph_msgs.msg import Clock
+    clock = probe.subscribe(Clock, '/clock')
+    steps = 40
+    _, sim = run_lockstep(sim_node, probe, helpers, seed=3, steps=steps, namespace='clocked',
+                          args=('-p', 'publish_clock:=true', '-p', 'clock_rate:=250.0'))
+    expected = {k * H_NS for k in range(0, steps + 1, 4)}
+    deadline = time.monotonic() + 10.0               # the last /clock may trail the pressures
+    while not expected <= (stamps := {helpers.stamp_ns(m.clock) for m in clock.messages()}):
+        assert time.monotonic() < deadline, sorted(stamps)
+        time.sleep(0.05)
+    assert stamps == expected, sorted(stamps)
+    assert '/clock published with 1 sample in 4' in sim.stderr, sim.stderr
 
 
 def test_lockstep_ignores_commands_from_the_past(sim_node, probe, helpers):
