@@ -109,7 +109,9 @@ def weighted_mean(A, W):
 
 @njit(cache=True)
 def inverse(S):
-    """S^-1; closed form for 1x1 and 2x2 (the PAM filter's P_yy), LAPACK otherwise."""
+    """S^-1, C-contiguous; closed form for 1x1 and 2x2 (the PAM filter's P_yy), LAPACK otherwise
+    (its Fortran-ordered result copied: one layout for every branch, else numba types the result
+    'A' and each product with it warns NumbaPerformanceWarning at the first compile)."""
     m = S.shape[0]
     if m == 1:
         return 1.0 / S
@@ -121,7 +123,7 @@ def inverse(S):
         inv[0, 1] = -S[0, 1] / det
         inv[1, 0] = -S[1, 0] / det
         return inv
-    return np.linalg.inv(S)
+    return np.ascontiguousarray(np.linalg.inv(S))
 
 
 @njit(cache=True)

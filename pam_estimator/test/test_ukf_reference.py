@@ -7,6 +7,7 @@ import pytest
 from pam_estimator.pam_ukf import DEFAULT_TUNING, PAPER_TUNING, PamUkf
 from pam_estimator.reference import filterpy_ukf
 from pam_estimator.unscented import (
+    inverse,
     julier_sigma_points,
     julier_weights,
     measurement_update,
@@ -45,6 +46,27 @@ def test_linear_case_equals_the_closed_form_kalman_filter():
         assert accepted and nis >= 0.0
         np.testing.assert_allclose(x_ukf, x_kf, rtol=1e-9, atol=1e-10)
         np.testing.assert_allclose(P_ukf, P_kf, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize('m', [2, 3], ids=['closed_form', 'lapack'])
+def test_the_measurement_update_compiles_without_performance_warnings(m):
+    """inverse() returns one layout (C) from every branch: a LAPACK result left Fortran-ordered
+    made numba type it 'A', and each product with it warned at the first compile of every UKF
+    step (compiled afresh here: a cached kernel would not warn)."""
+    import warnings
+
+    from numba import njit
+    from numba.core.errors import NumbaPerformanceWarning
+    assert inverse(np.eye(m) * 2.0).flags.c_contiguous
+    n = 4
+    x, P = np.zeros(n), np.eye(n)
+    sigmas, _ = julier_sigma_points(x, P, 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', NumbaPerformanceWarning)
+        fresh = njit(measurement_update.py_func)
+        x_post, _, _, accepted = fresh(x, P, sigmas, sigmas[:, :m].copy(),
+                                       julier_weights(n, 0.0), np.eye(m), np.ones(m), 0.0)
+    assert accepted and np.all(np.isfinite(x_post))
 
 
 @pytest.mark.parametrize('tuning', [PAPER_TUNING, DEFAULT_TUNING], ids=['paper', 'default'])
