@@ -96,9 +96,10 @@ def above_sample_rate(rate: float, sample_rate: float) -> bool:
     return rate != DEFAULT_RATE and rate > sample_rate * (1.0 + 1e-9)
 
 
-def joint_states_every(rate: float, sample_rate: float) -> int:
-    """Publish every n-th sample: n = round(sample_rate / rate) (at least 1); 0 if rate is 0
-    (off). A rate above sample_rate gives 1 (every sample)."""
+def every_nth_sample(rate: float, sample_rate: float) -> int:
+    """A stream of `sample_rate` Hz thinned to `rate` Hz (JointState, sim_node's /clock): every
+    n-th sample, n = round(sample_rate / rate) (at least 1); 0 if rate is 0 (off). A rate above
+    sample_rate gives 1 (every sample)."""
     if rate <= 0.0:
         return 0
     return max(1, round(sample_rate / rate))
@@ -106,7 +107,7 @@ def joint_states_every(rate: float, sample_rate: float) -> int:
 
 class JointStates:
     """One joint's JointState, filled into one message and published at `rate` Hz: every n-th
-    sample of a `sample_rate` Hz stream (joint_states_every). Never without a publisher, with
+    sample of a `sample_rate` Hz stream (every_nth_sample). Never without a publisher, with
     rate 0, or while the sample rate is not known (None)."""
 
     def __init__(self, publisher, message, joint_name: str, frame_id: str, rate: float,
@@ -128,7 +129,7 @@ class JointStates:
     def set_sample_rate(self, sample_rate: float) -> bool:
         """Publish 1 sample in round(sample_rate / rate) from now on; False if rate is above
         sample_rate (above_sample_rate: then every sample is published)."""
-        self.every = (joint_states_every(self.rate, sample_rate)
+        self.every = (every_nth_sample(self.rate, sample_rate)
                       if self.publisher is not None else 0)
         return not above_sample_rate(self.rate, sample_rate)
 

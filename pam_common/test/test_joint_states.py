@@ -6,19 +6,19 @@ import pytest
 
 from pam_common.joint_states import (
     check_joint_states,
+    every_nth_sample,
     joint_state_params,
-    joint_states_every,
     urdf_joint_name,
 )
 from pam_common.node_params import ConfigError, Deferred, check_all, defaults
 
 
 def test_every_nth_sample():
-    assert joint_states_every(1000.0, 1000.0) == 1
-    assert joint_states_every(100.0, 1000.0) == 10
-    assert joint_states_every(300.0, 1000.0) == 3         # round(3.33): 333 Hz, the nearest
-    assert joint_states_every(0.0, 1000.0) == 0           # off
-    assert joint_states_every(1000.0, 500.0) == 1         # never more than every sample
+    assert every_nth_sample(1000.0, 1000.0) == 1
+    assert every_nth_sample(100.0, 1000.0) == 10
+    assert every_nth_sample(300.0, 1000.0) == 3         # round(3.33): 333 Hz, the nearest
+    assert every_nth_sample(0.0, 1000.0) == 0           # off
+    assert every_nth_sample(1000.0, 500.0) == 1         # never more than every sample
 
 
 def test_the_defaults_come_from_the_urdf():

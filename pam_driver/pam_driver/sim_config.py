@@ -19,8 +19,8 @@ from pam_common.joint_states import (
     DEFAULT_RATE,
     above_sample_rate,
     check_joint_states,
+    every_nth_sample,
     joint_state_params,
-    joint_states_every,
 )
 from pam_common.node_params import (
     HARDWARE_ID_PARAM,
@@ -309,7 +309,7 @@ def build_config(overrides: Mapping[str, Any] | None = None) -> SimConfig:
         initial_command=(v['initial_command'][0], v['initial_command'][1]), seed=v['seed'],
         lockstep_timeout=v['lockstep_timeout'], max_catch_up=v['max_catch_up'],
         publish_clock=v['publish_clock'],
-        clock_every=joint_states_every(v['clock_rate'], v['rate']),
+        clock_every=every_nth_sample(v['clock_rate'], v['rate']),
         publish_supply_pressure=v['publish_supply_pressure'],
         joint_mode=v['joint_mode'], plant_parameters=v['plant_parameters'],
         scenario_name=v['scenario'], frame_id=v['frame_id'], hardware_id=v['hardware_id'],
