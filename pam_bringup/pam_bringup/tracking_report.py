@@ -331,7 +331,7 @@ class TrackingReport(Node):
         rate = (len(t) - 1) / max(t[-1], 1e-9)
         health = self.health()
         if not health.valid:
-            print('tracking_report: INVALID run: the loop was not real time ('
+            print(f'tracking_report: INVALID run: {health.headline} ('
                   + '; '.join(health.reasons) + '); the figures below are NOT results',
                   flush=True)
         print(f'tracking report: {"angle" if angle else "torque"} mode, {t[-1]:.1f} s, '
@@ -363,7 +363,7 @@ class TrackingReport(Node):
             print('  ' + where, flush=True)
         if self.config.plot:
             title = self.config.title + ('' if health.valid else
-                                            ' - INVALID: not real time, not a result')
+                                            f' - INVALID: {health.headline}, not a result')
             path = plot_tracking(t, reference * scale, measured * scale, estimate * scale,
                                  commands, unit, self.config.plot, title)
             print(f'  figure: {path}', flush=True)

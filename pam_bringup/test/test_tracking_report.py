@@ -166,7 +166,7 @@ def test_samples_lost_at_the_report_make_the_run_invalid_and_say_where(node_proc
     report, code, summary = feed_held_reference(node_process, probe, tmp_path, CLEAN_RIG,
                                                 missing=range(1500, 1600))
     assert code == 1, report.stdout + report.stderr
-    assert 'INVALID run: the loop was not real time (100 of 3001 samples lost at the report' \
+    assert 'INVALID run: the record is incomplete (100 of 3001 samples lost at the report' \
         in report.stdout, report.stdout
     assert re.search(r'^  samples lost at the report in 1 gap\(s\); the longest: 100 samples '
                      r'after 1\.50 s of the record$', report.stdout, re.MULTILINE), report.stdout

@@ -124,6 +124,17 @@ class RunHealth:
     valid: bool
     reasons: tuple[str, ...] = ()  # one per broken threshold, with the figure and the limit
     notes: tuple[str, ...] = ()    # what could not be judged (not a reason to fail)
+    incomplete: bool = False      # the report lost more samples than allowed (one of reasons)
+
+    @property
+    def headline(self) -> str:
+        """What an INVALID run was, for the first line of a report: the loop was not real time
+        (a reason of the rig's), or only the record is incomplete (samples lost at the report:
+        a lockstep loop that ran whole, a report starved of CPU)."""
+        if self.valid:
+            return 'valid'
+        return ('the record is incomplete' if self.incomplete and len(self.reasons) == 1
+                else 'the loop was not real time')
 
     def as_dict(self) -> dict:
         """Plain data for strict JSON: nan -> None, counts as ints, tuples as lists."""
@@ -198,8 +209,9 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
     reasons, notes = [], []
     if rig is None:
         reasons.append(NO_RIG)
+    incomplete = expected > 0 and lost / expected > limits.max_lost_fraction
     if expected > 0:
-        if lost / expected > limits.max_lost_fraction:
+        if incomplete:
             reasons.append(f'{lost} of {expected} samples lost at the report '
                            f'({100.0 * lost / expected:.2f} % > '
                            f'{100.0 * limits.max_lost_fraction:g} %)')
@@ -235,4 +247,5 @@ def judge_run(rig: Mapping | None, received: int, expected: int,
                      worst_stall=stall,
                      latency_p50=p50, latency_p99=p99, latency_max=worst_latency,
                      commands_timed=timed, late_commands=late_commands,
-                     valid=not reasons, reasons=tuple(reasons), notes=tuple(notes))
+                     valid=not reasons, reasons=tuple(reasons), notes=tuple(notes),
+                     incomplete=incomplete)

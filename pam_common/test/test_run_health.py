@@ -52,6 +52,10 @@ def test_each_broken_threshold_gives_one_reason_with_figure_and_limit(change, re
     health = judge_run({**CLEAN, **change}, received, 64001)
     assert not health.valid
     assert health.reasons == (expected_reason,)
+    lost = 'lost at the report' in expected_reason
+    assert health.incomplete is lost
+    assert health.headline == ('the record is incomplete' if lost else
+                               'the loop was not real time')
     assert health.lines()[0].endswith(': INVALID: ' + expected_reason), health.lines()
 
 
@@ -63,6 +67,13 @@ def test_the_limits_are_the_edges():
     strict = HealthLimits(max_late_fraction=0.0, max_worst_stall=0.0005)
     health = judge_run(CLEAN, 64001, 64001, strict)
     assert health.reasons == ('worst stall 0.90 ms > 0.5 ms',)
+
+
+def test_a_late_loop_that_also_lost_samples_was_not_real_time():
+    health = judge_run({**CLEAN, 'worst stall (ms)': '35'}, 63000, 64001)
+    assert health.incomplete and len(health.reasons) == 2
+    assert health.headline == 'the loop was not real time'
+    assert judge_run(CLEAN, 64001, 64001).headline == 'valid'
 
 
 def test_no_rig_status_is_invalid():

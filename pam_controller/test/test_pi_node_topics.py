@@ -39,8 +39,13 @@ def start_pi_node(node_process, probe, *params):
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics')
     estimates = probe.publisher(JointEstimate, '/pam/estimate')
     references = probe.publisher(Reference, '/pam/reference')
+    # both ways, as far as the probe can see: its publishers matched pi_node's subscriptions,
+    # its subscriptions pi_node's publishers (pi_node's side of the match it cannot see: see
+    # answered())
     assert wait_until(lambda: estimates.get_subscription_count() > 0
-                      and references.get_subscription_count() > 0, 60.0), pi.stderr
+                      and references.get_subscription_count() > 0
+                      and commands.subscription.get_publisher_count() > 0
+                      and states.subscription.get_publisher_count() > 0, 60.0), pi.stderr
 
     def feed(n, angle=0.0, torque=0.0, start=1.0):
         for k in range(n):
@@ -50,6 +55,20 @@ def start_pi_node(node_process, probe, *params):
             estimates.publish(msg)
             time.sleep(0.001)
     return pi, commands, states, diagnostics, references, feed
+
+
+def answered(feed, commands, start: float = 0.5, timeout: float = 20.0) -> None:
+    """Feed one estimate at a time (stamps from `start` s, 1 ms apart) until a command answers:
+    discovery matches each side of a publisher-subscription pair on its own, and a command
+    pi_node publishes before its publisher knows the probe's subscription reaches nobody (a CI
+    run waited 20 s for the answers to a first feed of 5 that all went nowhere)."""
+    end = time.monotonic() + timeout
+    k = 0
+    while not commands.messages():
+        assert time.monotonic() < end, f'no valve_command answered {k} estimates'
+        feed(1, start=start + k * 0.001)
+        k += 1
+        time.sleep(0.02)
 
 
 def test_pi_node_commands_gains_enable_timeout(node_process, probe):
