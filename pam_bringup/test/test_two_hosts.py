@@ -26,9 +26,9 @@ reference step (COMPARED), the steady-state error and the settling time of track
 runs are sequential, on one ROS domain claimed for this module (pam_common.testing.ros_domain).
 tracking_report runs at nice -10 and must have nearly every sample (MEASURE_NICE, MIN_RECORDED).
 Both runs use UDPv4 only, so that they differ in the link alone: with the default transports the
-one-host run went over shared memory, and three clean-clone CI runs lost one burst of 346-780
-samples at tracking_report there (the longest gap 375 samples, 0.16 s into the record: every
-topic at once, so in the report's receiving, not in the loop), while no run over UDP lost any.
+one-host run went over shared memory, and two clean-clone CI runs lost 780 and 375 of 17501
+samples at tracking_report there (the second in one gap 0.16 s into the record: every topic at
+once, so in the report's receiving, not in the loop), while no run over UDP lost any.
 
 A second test runs docs/two_hosts.md's recipe for networks without multicast (LOCALHOST with
 ROS_STATIC_PEERS) between the two namespaces.
