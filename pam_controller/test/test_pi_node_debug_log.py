@@ -15,12 +15,11 @@ SATURATED = 30      # estimates with a 0.3 rad error: kp 40 V/rad gives 12 V, th
 
 @pytest.mark.parametrize('debug', [True, False], ids=['debug', 'default'])
 def test_saturation_and_reference_at_debug_only(node_process, probe, debug):
-    from test_pi_node_topics import answered, start_pi_node
+    from test_pi_node_topics import start_pi_node
     pi, commands, states, diagnostics, references, feed = start_pi_node(
         node_process, probe, '-p', 'feedback_timeout:=30.0',     # no safe output in between
         *(['--log-level', 'debug'] if debug else []))
-    answered(feed, commands)                         # reference 0, angle 0: not saturated
-    feed(5)
+    feed(5)                                          # reference 0, angle 0: not saturated
     pi.wait_for(lambda: len(commands) >= 5, 20.0, 'the first 5 commands')   # before the new
     references.publish(Reference(mode=ANGLE, value=0.3))                   # reference
 

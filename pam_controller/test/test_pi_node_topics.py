@@ -32,7 +32,9 @@ def double_param(name, value):
 
 def start_pi_node(node_process, probe, *params):
     """pi_node with `-p` params, the probe's subscriptions and publishers, and feed(n, angle,
-    torque, start): n estimates 1 ms apart from stamp `start` (s)."""
+    torque, start): n estimates 1 ms apart from stamp `start` (s). Returns once a command and a
+    controller state have answered an estimate (see answered()), with both collectors cleared;
+    the tests' own estimates start at stamp 1 s."""
     pi = node_process('pi_node', 'pam_controller', *params)
     commands = probe.subscribe(ValveCommand, '/pam/valve_command')
     states = probe.subscribe(ControllerState, '/pam/controller_state')
@@ -54,18 +56,23 @@ def start_pi_node(node_process, probe, *params):
             msg.header.stamp = ns_stamp(round(t * 1e9))
             estimates.publish(msg)
             time.sleep(0.001)
+    answered(feed, commands, states)
+    commands.clear()
+    states.clear()
     return pi, commands, states, diagnostics, references, feed
 
 
-def answered(feed, commands, start: float = 0.5, timeout: float = 20.0) -> None:
-    """Feed one estimate at a time (stamps from `start` s, 1 ms apart) until a command answers:
-    discovery matches each side of a publisher-subscription pair on its own, and a command
-    pi_node publishes before its publisher knows the probe's subscription reaches nobody (a CI
-    run waited 20 s for the answers to a first feed of 5 that all went nowhere)."""
+def answered(feed, commands, states, start: float = 0.01, timeout: float = 20.0) -> None:
+    """Feed one estimate at a time (stamps from `start` s, 1 ms apart: below 1 s for the whole
+    timeout) until a command and a controller state answer: discovery matches each side of a
+    publisher-subscription pair on its own, and what pi_node publishes before its publishers
+    know the probe's subscriptions reaches nobody (a CI run waited 20 s for the answers to a
+    first feed of 5 that all went nowhere)."""
     end = time.monotonic() + timeout
     k = 0
-    while not commands.messages():
-        assert time.monotonic() < end, f'no valve_command answered {k} estimates'
+    while not (commands.messages() and states.messages()):
+        assert time.monotonic() < end, f'no valve_command and controller_state answered {k} ' \
+                                       'estimates'
         feed(1, start=start + k * 0.001)
         k += 1
         time.sleep(0.02)
