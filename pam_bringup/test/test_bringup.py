@@ -26,7 +26,7 @@ from pam_bringup.params_sections import key_pattern, section_keys, sections_for
 from pam_bringup.stack import default_params_file, every_node
 from pam_common.executables import find_executable
 from pam_common.testing import STARTUP_TIMEOUT, STOP_TIMEOUT, executable, stamp_ns, wait_until
-from pam_interfaces.msg import JointEstimate, Pressures, ValveCommand
+from pam_interfaces.msg import JointEstimate, Pressures, Reference, ValveCommand
 
 WINDOW = 1.5        # s, rate measurement window
 SETTLE = 0.5        # s, after the first message, before the window
@@ -379,6 +379,30 @@ def test_rig_apart_with_links_closes_the_loop_in_two_processes(node_process, pro
     assert set(started_pids(out)) == {'sim_node', 'pam_container'}, out
     assert 'in-process link /pam/estimate: /pam/ukf_node -> /pam/pi_node' in out, out
     assert 'in-process link /pam/pressures' not in out, 'the rig is not in the container'
+    assert 'sample loop runs' not in out, 'no sample loop in the container: rclpy timers'
+
+
+def test_links_with_the_rig_inside_run_the_reference_in_the_sample_loop(node_process, probe,
+                                                                        ros_domain):
+    """pam-bringup --composed --links, the whole stack in one process: sim_node's sampler runs
+    reference_node's 100 Hz timer every 10 samples (pam_common.links.ProcessLinks.drive), and
+    the references still reach another process over DDS, one per 10 samples at most (a tick
+    per sample would show as 1 kHz), stamped in order, while the loop runs."""
+    references = probe.subscribe(Reference, '/pam/reference')
+    commands = probe.subscribe(ValveCommand, '/pam/valve_command')
+    run = bringup(node_process, ros_domain, '--composed', '--links')
+    run.wait_for(lambda: len(references) > 0 and len(commands) > 0, STARTUP_TIMEOUT,
+                 'the first /pam/reference and /pam/valve_command')
+    time.sleep(SETTLE + 2.0 * WINDOW)
+    rate = stamp_rate(references, WINDOW)
+    assert MIN_RATE / 10.0 <= rate <= 105.0, f'/pam/reference at {rate:.0f} Hz (by stamp)'
+    stamps = [stamp_ns(m.header.stamp) for m in references.messages()]
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+    run.proc.send_signal(signal.SIGINT)
+    code = run.wait_exit(timeout=STOP_TIMEOUT + 10.0)
+    out = run.stdout
+    assert_clean_exit(code, out + run.stderr)
+    assert 'sample loop runs /pam/reference_node 100 Hz timer: every 10 samples' in out, out
 
 
 def test_rig_apart_and_links_are_options_of_the_composed_mode(ros_domain):

@@ -30,7 +30,16 @@ Trade-offs, chosen and written down (docs/composition.md):
   change a message after publishing it (the stack's nodes build a new message per sample);
 - whether another process subscribes is asked of DDS at most every RECOUNT_PERIOD (the count
   costs a few us, and a linked publisher asks it with every message): a subscription of another
-  process gets its first messages up to that long after it matched (discovery takes longer).
+  process gets its first messages up to that long after it matched (discovery takes longer);
+- a node's loop timer (LinkedNode.create_loop_timer: reference_node's profile) is run by the
+  process's sample loop once one drives the process (ProcessLinks.drive: sim_node's sampler),
+  every round(period / sample period) samples in the loop's thread, as ros2_control's update
+  loop runs each controller at a division of its rate; an rclpy timer otherwise, and again once
+  the loop stops. Why: an rclpy timer on the EventsExecutor wakes two threads per firing (its
+  timer thread, then the executor's), about 90 us of CPU each time on the development machine,
+  against about 10 us for the callback itself in the loop, which is awake anyway. So such a
+  timer follows the samples: it stalls with the loop (a reference has nothing to follow then).
+  A watchdog must not be one (pi_node's feedback timeout stays an rclpy timer).
 """
 
 from __future__ import annotations
@@ -42,10 +51,13 @@ from collections.abc import Callable
 
 from rclpy.node import Node
 
-__all__ = ['LinkedNode', 'ProcessLinks', 'disable_links', 'enable_links', 'process_links']
+__all__ = ['LinkedNode', 'LoopTimer', 'ProcessLinks', 'disable_links', 'enable_links',
+           'process_links']
 
 _ACTIVE: list[ProcessLinks] = []      # the process's links once enabled (one at most)
 RECOUNT_PERIOD = 0.1                  # s between two counts of a topic's other-process readers
+LOOP_TIMER_TOLERANCE = 0.01           # a loop runs a timer whose period is a whole number of
+                                      # sample periods within this fraction
 
 
 def enable_links() -> ProcessLinks:
@@ -127,6 +139,23 @@ class LinkedPublisher:
         return getattr(self._publisher, name)
 
 
+class LoopTimer:
+    """A node's periodic callback that the process's sample loop runs when one drives the
+    process (every `every` samples), and its rclpy `timer` otherwise (see ProcessLinks.drive)."""
+
+    def __init__(self, node: Node, period: float, callback: Callable, timer):
+        self.node = node
+        self.period = period            # s
+        self.callback = callback        # not serialised: the loop calls it under the lock
+        self.timer = timer              # rclpy timer (its callback serialised)
+        self.every = 0                  # samples between two calls while driven (0: not)
+        self._count = 0
+
+    def describe(self) -> str:
+        return (f'{self.node.get_fully_qualified_name()} {1.0 / self.period:g} Hz timer: '
+                + (f'every {self.every} samples of the loop' if self.every else 'rclpy timer'))
+
+
 class ProcessLinks:
     """The links of one process: its publishers and subscriptions by topic and message type."""
 
@@ -135,6 +164,8 @@ class ProcessLinks:
         self.is_open = False    # deliveries start once every node of the process is built
         self._subscriptions: dict[tuple[str, type], list[LinkedSubscription]] = {}
         self._published: dict[tuple[str, type], list[str]] = {}   # -> publishing nodes
+        self.loop_timers: list[LoopTimer] = []
+        self._driven: list[LoopTimer] = []      # those a sample loop runs now
 
     def open(self) -> None:
         """Start the deliveries: every node of the process is built (a node that publishes
@@ -171,6 +202,45 @@ class ProcessLinks:
                 subscription.open_dds()
         return subscription
 
+    def drive(self, sample_period: float) -> list[LoopTimer]:
+        """A sample loop of `sample_period` s (sim_node's sampler) runs the loop timers from now
+        on: each one whose period is a whole number of sample periods (within
+        LOOP_TIMER_TOLERANCE) has its rclpy timer cancelled and is called by tick() every that
+        many samples. Returns them (the loop logs them); release() hands them back."""
+        with self.lock:
+            for loop_timer in self.loop_timers:
+                every = round(loop_timer.period / sample_period)
+                if loop_timer.every or every < 1 or abs(every * sample_period - loop_timer.period) \
+                        > LOOP_TIMER_TOLERANCE * loop_timer.period:
+                    continue
+                loop_timer.timer.cancel()
+                loop_timer.every, loop_timer._count = every, 0
+                self._driven.append(loop_timer)
+            return list(self._driven)
+
+    def tick(self) -> None:
+        """One sample of the driving loop, in its thread: the loop timers that are due run,
+        under the process's lock (nothing before open())."""
+        if not self.is_open:
+            return
+        with self.lock:
+            for loop_timer in self._driven:
+                loop_timer._count += 1
+                if loop_timer._count >= loop_timer.every:
+                    loop_timer._count = 0
+                    loop_timer.callback()
+
+    def release(self) -> None:
+        """The sample loop stopped: its timers are rclpy timers again."""
+        with self.lock:
+            for loop_timer in self._driven:
+                loop_timer.every = 0
+                try:
+                    loop_timer.timer.reset()
+                except Exception:  # noqa: BLE001 - the node is going away (shutdown)
+                    pass
+            self._driven.clear()
+
     def links(self) -> list[str]:
         """One line per linked topic: 'topic: publisher -> subscriber, ...'."""
         lines = []
@@ -204,6 +274,17 @@ class LinkedNode(Node):
         if links is not None:
             callback = links.serialised(callback)
         return super().create_timer(timer_period_sec, callback, *args, **kwargs)
+
+    def create_loop_timer(self, timer_period_sec: float, callback: Callable):
+        """A periodic callback that a sample loop of the process may run in its thread instead
+        of an rclpy timer (links on, see ProcessLinks.drive); an rclpy timer (returned) always
+        exists. Only for a callback that may stall with the loop: never a watchdog."""
+        timer = self.create_timer(timer_period_sec, callback)
+        links = process_links()
+        if links is not None:
+            with links.lock:
+                links.loop_timers.append(LoopTimer(self, timer_period_sec, callback, timer))
+        return timer
 
     def create_plain_timer(self, timer_period_sec, callback):
         """rclpy's timer, never under the process's lock: for a callback that takes the lock

@@ -139,3 +139,52 @@ def test_the_linked_nodes_callbacks_run_one_at_a_time(links, context):
     assert calls[0] > 300, 'both callers ran'
     source.destroy_node()
     sink.destroy_node()
+
+
+def test_a_sample_loop_runs_the_loop_timers_it_divides(links, context):
+    """ProcessLinks.drive: a loop timer whose period is a whole number of sample periods is
+    run by tick() every that many samples, in the loop's thread, under the process's lock, its
+    rclpy timer cancelled meanwhile; one that is not (or is faster than the loop) stays an rclpy
+    timer; release() hands the driven ones back to rclpy."""
+    node = LinkedNode('looped', context=context)
+    calls = []
+
+    def record(name):
+        def callback():
+            free = []        # whether another thread could take the lock now
+            other = threading.Thread(target=lambda: free.append(
+                links.lock.acquire(blocking=False) and (links.lock.release() or True)))
+            other.start()
+            other.join()
+            calls.append((name, threading.get_ident(), not free[0]))
+        return callback
+    every_10 = node.create_loop_timer(0.010, record('every_10'))
+    uneven = node.create_loop_timer(0.0105, record('uneven'))
+    faster = node.create_loop_timer(0.0005, record('faster'))
+    plain = node.create_timer(0.010, record('plain'))
+    assert [t.timer for t in links.loop_timers] == [every_10, uneven, faster]
+
+    driven = links.drive(0.001)
+    assert [(t.timer, t.every) for t in driven] == [(every_10, 10)]
+    assert 'every 10 samples' in driven[0].describe() and '100 Hz' in driven[0].describe()
+    assert every_10.is_canceled()
+    assert not any(t.is_canceled() for t in (uneven, faster, plain))
+    for _ in range(5):
+        links.tick()
+    assert calls == [], 'nothing runs before the links are open'
+    links.open()
+    for _ in range(35):
+        links.tick()
+    me = threading.get_ident()
+    assert calls == [('every_10', me, True)] * 3      # the 10th, 20th, 30th sample since open
+    links.release()
+    assert not every_10.is_canceled() and links.drive(0.002)[0].every == 5
+    links.release()
+    node.destroy_node()
+
+
+def test_a_loop_timer_without_links_is_an_rclpy_timer(context):
+    node = LinkedNode('plain_loop', context=context)
+    timer = node.create_loop_timer(0.01, lambda: None)
+    assert type(timer).__name__ == 'Timer' and not timer.is_canceled()
+    node.destroy_node()

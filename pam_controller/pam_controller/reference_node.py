@@ -146,7 +146,8 @@ class ReferenceNode(LinkedNode):
                                          hold=True)
         self.start = None
         self.published = 0
-        self.create_timer(1.0 / config.rate, self._tick)
+        # with the in-process links, run by the sample loop when one drives the process
+        self.create_loop_timer(1.0 / config.rate, self._tick)
         diagnostics = DiagnosticsPublisher(self, 'reference profile', config.hardware_id,
                                            self._report)
         diagnostics.add_check(self.guard.report)

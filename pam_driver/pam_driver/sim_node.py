@@ -117,7 +117,7 @@ from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
-from pam_common.links import LinkedNode
+from pam_common.links import LinkedNode, ProcessLinks, process_links
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
@@ -295,6 +295,8 @@ class SimNode(LinkedNode):
         sampler = RealtimeSampler(core, 1.0 / self.config.rate, start, start_ns,
                                   self.config.max_catch_up)
         core.stats.restart(start)
+        links = process_links()
+        tick = self._drive(links) if links is not None else None
         try:
             while not self._stop.is_set():
                 delay = sampler.wait(time.monotonic())
@@ -306,11 +308,24 @@ class SimNode(LinkedNode):
                 sample, lateness, missed = taken
                 self._publish(self._messages(sample))
                 core.stats.record(lateness, missed)
+                if tick is not None:
+                    tick()
         except Exception as exc:  # noqa: BLE001 - report, do not die silently
             if self._stop.is_set() or not rclpy.ok(context=self.context):
                 return  # shutting down: the publishers went away under us
             core.fault = f'sampling thread stopped: {type(exc).__name__}: {exc}'
             self.get_logger().error(core.fault)
+        finally:
+            if tick is not None:
+                links.release()
+
+    def _drive(self, links: ProcessLinks):
+        """With the in-process links: this sampler runs the process's loop timers (ros2_control's
+        update loop; pam_common.links.ProcessLinks.drive); its per-sample call, None if none."""
+        driven = links.drive(1.0 / self.config.rate)
+        for loop_timer in driven:
+            self.get_logger().info(f'sample loop runs {loop_timer.describe()}')
+        return links.tick if driven else None
 
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ValveCommand) -> None:
