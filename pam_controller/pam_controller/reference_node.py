@@ -18,8 +18,10 @@ import sys
 from dataclasses import dataclass
 
 import numpy as np
+from std_msgs.msg import Header
 
 from pam_common.diagnostics import OK, DiagnosticsPublisher
+from pam_common.fast_messages import builder
 from pam_common.finite_guard import FiniteGuard
 from pam_common.links import LinkedNode
 from pam_common.node_params import (
@@ -42,6 +44,8 @@ from pam_common.topics import DEFAULT_NAMESPACE, REFERENCE
 from pam_interfaces.msg import Reference
 
 from .control_loop import ENVELOPE, MODE_NAMES
+
+build_header, build_reference = builder(Header), builder(Reference)
 
 NODE_NAME = 'reference_node'
 PROFILES = ('steps', 'ramp', 'sine', 'constant')
@@ -144,7 +148,7 @@ class ReferenceNode(LinkedNode):
         self.guard = FiniteGuard(self.get_logger())
         self.publisher = self.guard.wrap(self.create_publisher(Reference, REFERENCE, LATEST_QOS),
                                          hold=True)
-        self.start = None
+        self.start: int | None = None       # ns on the node clock, the first tick
         self.published = 0
         # with the in-process links, run by the sample loop when one drives the process
         self.create_loop_timer(1.0 / config.rate, self._tick)
@@ -161,11 +165,13 @@ class ReferenceNode(LinkedNode):
 
     def _tick(self) -> None:
         now = self.get_clock().now()
+        now_ns = now.nanoseconds
         if self.start is None:
-            self.start = now
-        t = (now - self.start).nanoseconds * 1e-9
-        msg = Reference(mode=self.mode, value=profile_value(self.config, self.steps, t))
-        msg.header.stamp = now.to_msg()
+            self.start = now_ns
+        t = (now_ns - self.start) * 1e-9
+        # built in one step (pam_common.fast_messages): this runs in the sample loop when linked
+        msg = build_reference(build_header(now.to_msg(), ''), self.mode,
+                              profile_value(self.config, self.steps, t))
         self.publisher.publish(msg)
         self.published += 1
         self.last_value = msg.value
