@@ -86,6 +86,35 @@ def wait_until(predicate, timeout: float, period: float = 0.01) -> bool:
     return bool(predicate())
 
 
+QUIET = 0.2       # s without a new answer after which feed_until_answered takes them all in
+
+
+def feed_until_answered(feed_one, collectors, timeout: float = 20.0,
+                        pause: float = 0.02) -> int:
+    """Feed a node process one input at a time (feed_one(k), k = 0, 1, ...) until every
+    collector (the probe's subscriptions to the node's answers) has a message, then clear them;
+    returns how many inputs it took (the collectors are cleared once no answer came for QUIET
+    s). Why: discovery matches each side of a publisher and a
+    subscription on its own, and the probe sees only its own side: what the node publishes
+    before ITS publisher knows the probe's subscription reaches nobody, so a test that feeds a
+    fixed burst once and counts the answers can wait forever. A node whose state the inputs
+    change must be reset after this (ukf_node: its ~/reset service)."""
+    end = time.monotonic() + timeout
+    k = 0
+    while not all(len(c) for c in collectors):
+        assert time.monotonic() < end, f'no answer on every topic to {k} inputs'
+        feed_one(k)
+        k += 1
+        time.sleep(pause)
+    counted = -1                     # the answers to the last inputs may still be on their way
+    while counted != sum(len(c) for c in collectors) and time.monotonic() < end:
+        counted = sum(len(c) for c in collectors)
+        time.sleep(QUIET)
+    for collector in collectors:
+        collector.clear()
+    return k
+
+
 def log_lines(text: str, severity: str, logger: str | None = None) -> list[str]:
     """The rclpy console lines of `text` (a process's stderr) at `severity` ('DEBUG', 'INFO',
     ...), of `logger` (e.g. 'pam.ukf_node': the node's namespace and name) if given; the

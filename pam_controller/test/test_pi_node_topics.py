@@ -13,7 +13,7 @@ from std_srvs.srv import SetBool
 
 from pam_common.diagnostics import WARN, status_values
 from pam_common.stamps import ns_stamp
-from pam_common.testing import diagnostic_statuses, wait_until
+from pam_common.testing import diagnostic_statuses, feed_until_answered, wait_until
 from pam_interfaces.msg import ControllerState, JointEstimate, Reference, ValveCommand
 
 
@@ -33,8 +33,8 @@ def double_param(name, value):
 def start_pi_node(node_process, probe, *params):
     """pi_node with `-p` params, the probe's subscriptions and publishers, and feed(n, angle,
     torque, start): n estimates 1 ms apart from stamp `start` (s). Returns once a command and a
-    controller state have answered an estimate (see answered()), with both collectors cleared;
-    the tests' own estimates start at stamp 1 s."""
+    controller state have answered an estimate (pam_common.testing.feed_until_answered), with
+    both collectors cleared; the tests' own estimates start at stamp 1 s."""
     pi = node_process('pi_node', 'pam_controller', *params)
     commands = probe.subscribe(ValveCommand, '/pam/valve_command')
     states = probe.subscribe(ControllerState, '/pam/controller_state')
@@ -43,7 +43,7 @@ def start_pi_node(node_process, probe, *params):
     references = probe.publisher(Reference, '/pam/reference')
     # both ways, as far as the probe can see: its publishers matched pi_node's subscriptions,
     # its subscriptions pi_node's publishers (pi_node's side of the match it cannot see: see
-    # answered())
+    # feed_until_answered)
     assert wait_until(lambda: estimates.get_subscription_count() > 0
                       and references.get_subscription_count() > 0
                       and commands.subscription.get_publisher_count() > 0
@@ -56,26 +56,9 @@ def start_pi_node(node_process, probe, *params):
             msg.header.stamp = ns_stamp(round(t * 1e9))
             estimates.publish(msg)
             time.sleep(0.001)
-    answered(feed, commands, states)
-    commands.clear()
-    states.clear()
+    # stamps below 1 s for the whole timeout (0.02 s apart in time, 1 ms in stamp)
+    feed_until_answered(lambda k: feed(1, start=0.01 + k * 0.001), (commands, states))
     return pi, commands, states, diagnostics, references, feed
-
-
-def answered(feed, commands, states, start: float = 0.01, timeout: float = 20.0) -> None:
-    """Feed one estimate at a time (stamps from `start` s, 1 ms apart: below 1 s for the whole
-    timeout) until a command and a controller state answer: discovery matches each side of a
-    publisher-subscription pair on its own, and what pi_node publishes before its publishers
-    know the probe's subscriptions reaches nobody (a CI run waited 20 s for the answers to a
-    first feed of 5 that all went nowhere)."""
-    end = time.monotonic() + timeout
-    k = 0
-    while not (commands.messages() and states.messages()):
-        assert time.monotonic() < end, f'no valve_command and controller_state answered {k} ' \
-                                       'estimates'
-        feed(1, start=start + k * 0.001)
-        k += 1
-        time.sleep(0.02)
 
 
 def test_pi_node_commands_gains_enable_timeout(node_process, probe):

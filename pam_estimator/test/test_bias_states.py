@@ -26,6 +26,7 @@ from pam_model.model import PamModel
 from pam_model.profiles import validation_profile
 from pam_model.sensor import PressureSensor
 from pam_model.simulate import simulate
+from test_ukf_node_topics import answered_then_reset
 
 X0 = (0.0, 0.0, 4.5e5, 4.5e5)
 RIG = Effects(valve_time_constant=0.005, dead_volume=6.0e-6, hysteresis_band=2.0,
@@ -134,6 +135,12 @@ def test_ukf_node_bias_states_parameter(node_process, probe):
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
     pub = probe.publisher(Pressures, '/pam/pressures')
     node.wait_for(lambda: pub.get_subscription_count() > 0, 60.0, 'ukf_node subscribed')
+
+    def warm_up_sample(k):
+        msg = Pressures(p1=4.5e5, p2=4.5e5)
+        msg.header.stamp = ns_stamp(round((1.0 + k * 1e-3) * 1e9))
+        pub.publish(msg)
+    answered_then_reset(probe, estimates, warm_up_sample)
     offline = PamUkf(model=PamModel(), x0=X0, bias_states=DEFAULT_BIAS_STATES)
     expected = []
     for k in range(1, samples + 1):

@@ -3,13 +3,13 @@ reset (a stamp from the past), a sample the NIS gate rejects (a pressure far fro
 and an invalid one (out of range) each give a line from our own code; without it the same feed
 prints no DEBUG line at all."""
 
-import time
 
 import pytest
 
 from pam_common.stamps import ns_stamp
 from pam_common.testing import assert_no_debug_lines, wait_for_log
 from pam_interfaces.msg import JointEstimate, Pressures
+from test_ukf_node_topics import answered_then_reset
 
 LOGGER = 'pam.ukf_node'
 
@@ -27,7 +27,7 @@ def test_reset_and_rejections_at_debug_only(node_process, probe, debug):
     estimates = probe.subscribe(JointEstimate, '/pam/estimate', depth=1000)
     pub = probe.publisher(Pressures, '/pam/pressures')
     ukf.wait_for(lambda: pub.get_subscription_count() > 0, 60.0, 'ukf_node matched')
-    time.sleep(0.5)        # the estimate subscription matched too (as test_ukf_node_topics)
+    answered_then_reset(probe, estimates, lambda k: pub.publish(pressures(0, 1.0 + k * 1e-3)))
     feed = [pressures(k, 100.0 + k * 1e-3) for k in range(1, 21)]
     feed += [pressures(21, 100.021, p1=9.0e5),          # 450 kPa off the prediction: gated
              pressures(22, 100.022, p1=5.0e6),          # above pressure_max: invalid

@@ -20,6 +20,7 @@ from pam_interfaces.msg import JointEstimate, Pressures
 from pam_model.effects import Effects
 from pam_model.model import PamModel
 from pam_model.model_extensions import NO_EXTENSIONS, load_extensions, save_extensions
+from test_ukf_node_topics import answered_then_reset
 
 EXTENSIONS = Effects(valve_time_constant=0.005, dead_volume=6.0e-6, hysteresis_band=2.0,
                      sensor_offset=(2000.0, -3000.0), sensor_gain_error=(0.005, -0.005))
@@ -41,6 +42,12 @@ def start(node_process, probe, *args):
     pub = probe.publisher(Pressures, '/pam/pressures')
     ukf.wait_for(lambda: pub.get_subscription_count() > 0, 60.0, 'ukf_node subscribed')
     return ukf, estimates, diagnostics, pub
+
+
+def warm_up(probe, estimates, pub, stamp_s: float) -> None:
+    """ukf_node answered a sample (stamps from stamp_s s, no counter), then reset: see
+    test_ukf_node_topics.answered_then_reset."""
+    answered_then_reset(probe, estimates, lambda k: feed(pub, 0, stamp_s + k * 1e-4))
 
 
 def feed(pub, k: int, stamp_s: float) -> None:
@@ -72,6 +79,7 @@ def test_an_extensions_file_reaches_the_filter(node_process, probe, tmp_path):
     assert load_extensions(path) == EXTENSIONS
     ukf, estimates, diagnostics, pub = start(node_process, probe,
                                              '-p', f'model_extensions:={path}')
+    warm_up(probe, estimates, pub, 1.0)
     for k in range(1, SAMPLES + 1):
         feed(pub, k, START_S + k * 1e-3)
     ukf.wait_for(lambda: len(estimates) >= SAMPLES, 30.0, f'{SAMPLES} estimates')
@@ -115,6 +123,7 @@ def test_the_measured_supply_pressure_is_p_tank(node_process, probe):
 
     publish_supply(START_S)
     time.sleep(0.5)                 # held before the first sample
+    warm_up(probe, estimates, pub, START_S)    # with the supply reading: none falls back
     for k in range(1, SAMPLES + 1):
         feed(pub, k, START_S + k * 1e-3)
         publish_supply(START_S + k * 1e-3)

@@ -9,7 +9,7 @@ import numpy as np
 from std_srvs.srv import Trigger
 
 from pam_common.stamps import ns_stamp, stamp_ns
-from pam_common.testing import executable, wait_until
+from pam_common.testing import executable, feed_until_answered, wait_until
 from pam_interfaces.msg import JointEstimate, JointMeasurement, Pressures, ValveCommand
 
 # The demo (sim_node + ukf_node, perfect model, ideal sensor) gives an online angle error of
@@ -59,12 +59,25 @@ def publish_pressures(pub, stamp_s, p1, p2):
     pub.publish(msg)
 
 
+def answered_then_reset(probe, estimates, feed_one) -> None:
+    """Feed ukf_node one sample at a time (feed_one(k)) until an estimate answers
+    (pam_common.testing.feed_until_answered: ukf_node's estimate publisher has then matched the
+    probe's subscription), then reset the filter through ~/reset: the test's own samples start
+    from the initial state and initial covariance, with no last stamp or sample counter."""
+    feed_until_answered(feed_one, (estimates,))
+    client = probe.client(Trigger, '/pam/ukf_node/reset')
+    assert client.wait_for_service(timeout_sec=20.0)
+    future = client.call_async(Trigger.Request())
+    assert wait_until(future.done, 10.0) and future.result().success
+
+
 def test_bad_pressures_backwards_time_and_reset(node_process, probe):
     ukf = node_process('ukf_node', 'pam_estimator')
     est = probe.subscribe(JointEstimate, '/pam/estimate')
     pub = probe.publisher(Pressures, '/pam/pressures')
     assert wait_until(lambda: pub.get_subscription_count() > 0, 60.0), ukf.stderr
-    time.sleep(0.5)
+    answered_then_reset(probe, est, lambda k: publish_pressures(pub, 1.0 + k * 1e-3, 4.5e5,
+                                                                4.5e5))
     t = 100.0
     for p1, p2 in [(4.5e5, 4.5e5)] * 5 + [(math.nan, 4.5e5), (math.inf, -1.0), (-5.0, 4e5),
                                           (4.5e5, 4.5e5)]:
