@@ -405,6 +405,24 @@ def test_links_with_the_rig_inside_run_the_reference_in_the_sample_loop(node_pro
     assert 'sample loop runs /pam/reference_node 100 Hz timer: every 10 samples' in out, out
 
 
+def test_two_joints_in_one_linked_container_each_loop_runs_its_own_reference(node_process,
+                                                                              probe):
+    """pam_container --links --namespace /j1 /j2: each joint's sampler runs its own joint's
+    reference_node (one per 10 samples each: a timer run by both loops would show 200 Hz)."""
+    references = {ns: probe.subscribe(Reference, f'{ns}/reference') for ns in ('/j1', '/j2')}
+    run = node_process('pam_container', 'pam_bringup', '--links', '--namespace', '/j1', '/j2',
+                       '--params-file', str(default_params_file()), raw=True)
+    run.wait_for(lambda: all(len(c) for c in references.values()), STARTUP_TIMEOUT,
+                 'the first reference of both joints')
+    time.sleep(SETTLE + 2.0 * WINDOW)
+    for ns, collector in references.items():
+        rate = stamp_rate(collector, WINDOW)
+        assert MIN_RATE / 10.0 <= rate <= 105.0, f'{ns}/reference at {rate:.0f} Hz (by stamp)'
+        assert f'sample loop runs {ns}/reference_node 100 Hz timer: every 10 samples' in \
+            run.stderr + run.stdout
+    assert run.alive()
+
+
 def test_rig_apart_and_links_are_options_of_the_composed_mode(ros_domain):
     run = subprocess.run([executable('pam-bringup', 'pam_bringup'), '--separate', '--links'],
                          capture_output=True, text=True, timeout=30)

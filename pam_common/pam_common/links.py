@@ -32,7 +32,7 @@ Trade-offs, chosen and written down (docs/composition.md):
   costs a few us, and a linked publisher asks it with every message): a subscription of another
   process gets its first messages up to that long after it matched (discovery takes longer);
 - a node's loop timer (LinkedNode.create_loop_timer: reference_node's profile) is run by the
-  process's sample loop once one drives the process (ProcessLinks.drive: sim_node's sampler),
+  sample loop of its namespace once one drives it (ProcessLinks.drive: sim_node's sampler),
   every round(period / sample period) samples in the loop's thread, as ros2_control's update
   loop runs each controller at a division of its rate; an rclpy timer otherwise, and again once
   the loop stops. Why: an rclpy timer on the EventsExecutor wakes two threads per firing (its
@@ -51,8 +51,8 @@ from collections.abc import Callable
 
 from rclpy.node import Node
 
-__all__ = ['LinkedNode', 'LoopTimer', 'ProcessLinks', 'disable_links', 'enable_links',
-           'process_links']
+__all__ = ['LinkedNode', 'LoopTimer', 'ProcessLinks', 'SampleLoop', 'disable_links',
+           'enable_links', 'process_links']
 
 _ACTIVE: list[ProcessLinks] = []      # the process's links once enabled (one at most)
 RECOUNT_PERIOD = 0.1                  # s between two counts of a topic's other-process readers
@@ -149,11 +149,42 @@ class LoopTimer:
         self.callback = callback        # not serialised: the loop calls it under the lock
         self.timer = timer              # rclpy timer (its callback serialised)
         self.every = 0                  # samples between two calls while driven (0: not)
-        self._count = 0
+        self.count = 0                  # samples since the last call while driven
 
     def describe(self) -> str:
         return (f'{self.node.get_fully_qualified_name()} {1.0 / self.period:g} Hz timer: '
                 + (f'every {self.every} samples of the loop' if self.every else 'rclpy timer'))
+
+
+class SampleLoop:
+    """The loop timers one sample loop drives (ProcessLinks.drive)."""
+
+    def __init__(self, links: ProcessLinks):
+        self._links = links
+        self.timers: list[LoopTimer] = []
+
+    def tick(self) -> None:
+        """One sample of the loop, in its thread: its loop timers that are due run, under the
+        process's lock (nothing before the links are open)."""
+        if not self._links.is_open:
+            return
+        with self._links.lock:
+            for loop_timer in self.timers:
+                loop_timer.count += 1
+                if loop_timer.count >= loop_timer.every:
+                    loop_timer.count = 0
+                    loop_timer.callback()
+
+    def release(self) -> None:
+        """The loop stopped: its timers are rclpy timers again."""
+        with self._links.lock:
+            for loop_timer in self.timers:
+                loop_timer.every = 0
+                try:
+                    loop_timer.timer.reset()
+                except Exception:  # noqa: BLE001 - the node is going away (shutdown)
+                    pass
+            self.timers.clear()
 
 
 class ProcessLinks:
@@ -165,7 +196,6 @@ class ProcessLinks:
         self._subscriptions: dict[tuple[str, type], list[LinkedSubscription]] = {}
         self._published: dict[tuple[str, type], list[str]] = {}   # -> publishing nodes
         self.loop_timers: list[LoopTimer] = []
-        self._driven: list[LoopTimer] = []      # those a sample loop runs now
 
     def open(self) -> None:
         """Start the deliveries: every node of the process is built (a node that publishes
@@ -202,44 +232,25 @@ class ProcessLinks:
                 subscription.open_dds()
         return subscription
 
-    def drive(self, sample_period: float) -> list[LoopTimer]:
-        """A sample loop of `sample_period` s (sim_node's sampler) runs the loop timers from now
-        on: each one whose period is a whole number of sample periods (within
-        LOOP_TIMER_TOLERANCE) has its rclpy timer cancelled and is called by tick() every that
-        many samples. Returns them (the loop logs them); release() hands them back."""
+    def drive(self, sample_period: float, namespace: str) -> SampleLoop:
+        """A sample loop of `sample_period` s (sim_node's sampler) in `namespace` (its joint's)
+        takes over the loop timers of that namespace's nodes that no loop drives yet and whose
+        period is a whole number of sample periods (within LOOP_TIMER_TOLERANCE): their rclpy
+        timers are cancelled, SampleLoop.tick() calls them every that many samples, and
+        SampleLoop.release() hands them back. Two joints in one process: each sampler drives its
+        own joint's timers."""
+        loop = SampleLoop(self)
         with self.lock:
             for loop_timer in self.loop_timers:
                 every = round(loop_timer.period / sample_period)
-                if loop_timer.every or every < 1 or abs(every * sample_period - loop_timer.period) \
+                if loop_timer.every or loop_timer.node.get_namespace() != namespace \
+                        or every < 1 or abs(every * sample_period - loop_timer.period) \
                         > LOOP_TIMER_TOLERANCE * loop_timer.period:
                     continue
                 loop_timer.timer.cancel()
-                loop_timer.every, loop_timer._count = every, 0
-                self._driven.append(loop_timer)
-            return list(self._driven)
-
-    def tick(self) -> None:
-        """One sample of the driving loop, in its thread: the loop timers that are due run,
-        under the process's lock (nothing before open())."""
-        if not self.is_open:
-            return
-        with self.lock:
-            for loop_timer in self._driven:
-                loop_timer._count += 1
-                if loop_timer._count >= loop_timer.every:
-                    loop_timer._count = 0
-                    loop_timer.callback()
-
-    def release(self) -> None:
-        """The sample loop stopped: its timers are rclpy timers again."""
-        with self.lock:
-            for loop_timer in self._driven:
-                loop_timer.every = 0
-                try:
-                    loop_timer.timer.reset()
-                except Exception:  # noqa: BLE001 - the node is going away (shutdown)
-                    pass
-            self._driven.clear()
+                loop_timer.every, loop_timer.count = every, 0
+                loop.timers.append(loop_timer)
+        return loop
 
     def links(self) -> list[str]:
         """One line per linked topic: 'topic: publisher -> subscriber, ...'."""

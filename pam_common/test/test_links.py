@@ -142,11 +142,13 @@ def test_the_linked_nodes_callbacks_run_one_at_a_time(links, context):
 
 
 def test_a_sample_loop_runs_the_loop_timers_it_divides(links, context):
-    """ProcessLinks.drive: a loop timer whose period is a whole number of sample periods is
-    run by tick() every that many samples, in the loop's thread, under the process's lock, its
-    rclpy timer cancelled meanwhile; one that is not (or is faster than the loop) stays an rclpy
-    timer; release() hands the driven ones back to rclpy."""
-    node = LinkedNode('looped', context=context)
+    """ProcessLinks.drive: a loop timer of the loop's namespace whose period is a whole number
+    of sample periods is run by the loop's tick() every that many samples, in the loop's
+    thread, under the process's lock, its rclpy timer cancelled meanwhile; one that is not (or
+    is faster than the loop, or of another namespace, or already driven) stays an rclpy timer;
+    release() hands the driven ones back to rclpy."""
+    node = LinkedNode('looped', namespace='/j1', context=context)
+    other_joint = LinkedNode('looped', namespace='/j2', context=context)
     calls = []
 
     def record(name):
@@ -162,25 +164,31 @@ def test_a_sample_loop_runs_the_loop_timers_it_divides(links, context):
     uneven = node.create_loop_timer(0.0105, record('uneven'))
     faster = node.create_loop_timer(0.0005, record('faster'))
     plain = node.create_timer(0.010, record('plain'))
-    assert [t.timer for t in links.loop_timers] == [every_10, uneven, faster]
+    j2 = other_joint.create_loop_timer(0.010, record('j2'))
+    assert [t.timer for t in links.loop_timers] == [every_10, uneven, faster, j2]
 
-    driven = links.drive(0.001)
-    assert [(t.timer, t.every) for t in driven] == [(every_10, 10)]
-    assert 'every 10 samples' in driven[0].describe() and '100 Hz' in driven[0].describe()
+    loop = links.drive(0.001, '/j1')
+    assert [(t.timer, t.every) for t in loop.timers] == [(every_10, 10)]
+    assert 'every 10 samples' in loop.timers[0].describe()
+    assert '/j1/looped 100 Hz' in loop.timers[0].describe()
     assert every_10.is_canceled()
-    assert not any(t.is_canceled() for t in (uneven, faster, plain))
+    assert not any(t.is_canceled() for t in (uneven, faster, plain, j2))
+    assert links.drive(0.001, '/j1').timers == [], 'driven by one loop at most'
     for _ in range(5):
-        links.tick()
+        loop.tick()
     assert calls == [], 'nothing runs before the links are open'
     links.open()
     for _ in range(35):
-        links.tick()
+        loop.tick()
     me = threading.get_ident()
     assert calls == [('every_10', me, True)] * 3      # the 10th, 20th, 30th sample since open
-    links.release()
-    assert not every_10.is_canceled() and links.drive(0.002)[0].every == 5
-    links.release()
+    loop.release()
+    assert not every_10.is_canceled()
+    again = links.drive(0.002, '/j1')
+    assert [t.every for t in again.timers] == [5]
+    again.release()
     node.destroy_node()
+    other_joint.destroy_node()
 
 
 def test_a_loop_timer_without_links_is_an_rclpy_timer(context):

@@ -117,7 +117,7 @@ from std_srvs.srv import Trigger
 
 from pam_common.diagnostics import DiagnosticsPublisher
 from pam_common.executors import LOCKSTEP_PUBLICATION_MODE, PUBLICATION_MODE_VARIABLE
-from pam_common.links import LinkedNode, ProcessLinks, process_links
+from pam_common.links import LinkedNode, ProcessLinks, SampleLoop, process_links
 from pam_common.node_skeleton import Component, component_main, parameter_values
 from pam_common.qos import CLOCK_QOS, SAMPLE_QOS
 from pam_common.realtime_knobs import RealtimeKnobs
@@ -296,7 +296,8 @@ class SimNode(LinkedNode):
                                   self.config.max_catch_up)
         core.stats.restart(start)
         links = process_links()
-        tick = self._drive(links) if links is not None else None
+        loop = self._drive(links) if links is not None else None
+        tick = loop.tick if loop is not None and loop.timers else None
         try:
             while not self._stop.is_set():
                 delay = sampler.wait(time.monotonic())
@@ -316,16 +317,16 @@ class SimNode(LinkedNode):
             core.fault = f'sampling thread stopped: {type(exc).__name__}: {exc}'
             self.get_logger().error(core.fault)
         finally:
-            if tick is not None:
-                links.release()
+            if loop is not None:
+                loop.release()
 
-    def _drive(self, links: ProcessLinks):
-        """With the in-process links: this sampler runs the process's loop timers (ros2_control's
-        update loop; pam_common.links.ProcessLinks.drive); its per-sample call, None if none."""
-        driven = links.drive(1.0 / self.config.rate)
-        for loop_timer in driven:
+    def _drive(self, links: ProcessLinks) -> SampleLoop:
+        """With the in-process links: this sampler runs the loop timers of its namespace
+        (ros2_control's update loop; pam_common.links.ProcessLinks.drive), each logged."""
+        loop = links.drive(1.0 / self.config.rate, self.get_namespace())
+        for loop_timer in loop.timers:
             self.get_logger().info(f'sample loop runs {loop_timer.describe()}')
-        return links.tick if driven else None
+        return loop
 
     # ------------------------------------------------------------------ commands
     def _on_command(self, msg: ValveCommand) -> None:
