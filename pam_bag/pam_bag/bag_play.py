@@ -11,11 +11,13 @@ rate factor, loop, topic selection, remapping, start offset, start paused (resum
 message to send, so after a stall /clock does not run past unsent data).
 At the end it waits (at most `wait_for_all_acked`) for reliable subscribers to acknowledge every
 message: a sample not acknowledged when the writer's process exits is lost.
-At the start (after `delay`, unless start paused) it waits at most `wait_for_subscribers` for a
-matched subscription on every topic it plays: discovery matches each pair of processes on its own
-and can take one announcement period (3 s), and a message sent before that is lost to the late
-subscriber. Messages sent on a topic before it had any subscriber are counted: a warning when it
-gets its first, and the totals in the end summary.
+At the start (after `delay`; started paused: at the first ~/resume) it waits at most
+`wait_for_subscribers` for a matched subscription on every topic it plays: discovery matches each
+pair of processes on its own and can take one announcement period (3 s), and a message sent
+before that is lost to the late subscriber (the subscriber's process can see its side of the
+match before the player's side is done, so it cannot tell the player when to resume). Messages
+sent on a topic before it had any subscriber are counted: a warning when it gets its first, and
+the totals in the end summary.
 Bad input (missing metadata.yaml, truncated or corrupt .mcap, a type with no installed
 package, a topic recorded with another definition of its type than the installed one: its
 channel's RIHS01 topic_type_hash, or the hash of its embedded definition, differs from the
@@ -80,9 +82,9 @@ PARAMETERS = (
               'Wait this long after creating the publishers (for subscribers to match).',
               range=(0.0, 60.0)),
     ParamSpec('wait_for_subscribers', 4.0, 'double', 's',
-              'After `delay`, wait at most this long until every played topic has a matched '
-              'subscription (DDS discovery can take one 3 s announcement period), then play; '
-              'not when start_paused; 0: do not wait.', range=(0.0, 600.0)),
+              'After `delay` (start_paused: at the first ~/resume), wait at most this long '
+              'until every played topic has a matched subscription (DDS discovery can take one '
+              '3 s announcement period), then play; 0: do not wait.', range=(0.0, 600.0)),
     ParamSpec('read_ahead_size', 10000, 'integer', 'messages',
               'Messages read ahead of playback by a background thread (memory stays bounded '
               'however long the bag).', range=(100, 10_000_000)),
@@ -364,6 +366,8 @@ class BagPlayer(Node):
         passes = 0
         while item is not END:
             self._wait_running(first)
+            if not passes and self.config.start_paused and self.config.wait_for_subscribers > 0:
+                self._wait_for_subscribers()      # at the first ~/resume, as an unpaused start
             t0 = time.monotonic_ns()
             passes += 1
             if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):

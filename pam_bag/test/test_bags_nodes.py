@@ -70,14 +70,14 @@ def test_record_sim_node(node_process, tmp_path_factory):
 
 def resumed_player(node_process, probe, topic: str, *params, name: str = 'bag_play'):
     """bag_play (node `name`) started paused and resumed once the probe has discovered its
-    publisher of `topic` (and 0.5 s more for the match to complete both ways): no message is
-    sent before the probe's subscription is matched, however slowly the processes start (a
-    fixed delay is not enough on a loaded machine)."""
+    publisher of `topic`: at the resume the player itself waits until its writers matched a
+    subscription (wait_for_subscribers), so no message is sent before the probe's subscription
+    is matched, however slowly the processes start (a fixed delay is not enough on a loaded
+    machine, and the probe sees only its side of the match)."""
     from std_srvs.srv import Trigger
     player = node_process('bag_play', 'pam_bag', *params, '-p', 'start_paused:=true',
                           '-p', 'delay:=0.0', '-r', f'__node:={name}')
     player.wait_for(lambda: probe.node.count_publishers(topic) > 0, 30.0, 'the publisher')
-    time.sleep(0.5)
     client = probe.client(Trigger, f'/{name}/resume')
     assert client.wait_for_service(timeout_sec=30.0), player.stderr
     future = client.call_async(Trigger.Request())
@@ -266,7 +266,8 @@ def test_start_offset_starts_at_the_message_at_the_offset(node_process, probe, s
 
 
 def test_start_paused_plays_nothing_until_resumed(node_process, probe, small_bag):
-    """Paused: no message, /clock at the bag's start time; ~/resume plays all of it."""
+    """Paused: no message, /clock at the bag's start time; ~/resume plays all of it, once every
+    played topic has a subscriber (wait_for_subscribers)."""
     from rosgraph_msgs.msg import Clock
     from std_srvs.srv import Trigger
     got = pressures(probe)
@@ -288,6 +289,9 @@ def test_start_paused_plays_nothing_until_resumed(node_process, probe, small_bag
     player.wait_for(lambda: len(got) >= N, 30.0, f'{N} messages after resuming')
     assert [index(m) for m in got.messages()] == list(range(N))
     assert player.wait_exit(10.0) == 0
+    # the first ~/resume waited for its writer to match the probe's reader, as an unpaused
+    # start does: the probe sees only its own side of the match
+    assert 'every topic has a subscriber' in player.stderr + player.stdout
 
 
 @pytest.fixture(scope='module')
