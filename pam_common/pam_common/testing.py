@@ -94,11 +94,11 @@ def feed_until_answered(feed_one, collectors, timeout: float = 20.0,
     """Feed a node process one input at a time (feed_one(k), k = 0, 1, ...) until every
     collector (the probe's subscriptions to the node's answers) has a message, then clear them;
     returns how many inputs it took (the collectors are cleared once no answer came for QUIET
-    s). Why: discovery matches each side of a publisher and a
-    subscription on its own, and the probe sees only its own side: what the node publishes
-    before ITS publisher knows the probe's subscription reaches nobody, so a test that feeds a
-    fixed burst once and counts the answers can wait forever. A node whose state the inputs
-    change must be reset after this (ukf_node: its ~/reset service)."""
+    s). Why: discovery matches each side of a publisher and a subscription on its own, and the
+    probe sees only its own side: what the node publishes before ITS publisher knows the probe's
+    subscription reaches nobody, so a test that feeds a fixed burst once and counts the answers
+    can wait forever. A node whose state the inputs change must be reset after this (ukf_node:
+    its ~/reset service)."""
     end = time.monotonic() + timeout
     k = 0
     while not all(len(c) for c in collectors):

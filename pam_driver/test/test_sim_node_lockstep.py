@@ -107,7 +107,10 @@ def test_lockstep_ignores_commands_from_the_past(sim_node, probe, helpers):
     clock = probe.subscribe(Clock, '/clock')
     diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', depth=10)
     command = probe.publisher(ValveCommand, '/pam/valve_command')
-    sim.wait_for(lambda: len(got) > 0, STARTUP, 'the first lockstep sample')
+    # the sample of step 0 and its /clock are re-published every lockstep_timeout until a
+    # command comes: both writers have then matched the probe's readers
+    sim.wait_for(lambda: len(got) > 0 and len(clock) > 0, STARTUP,
+                 'the first lockstep sample and its /clock')
     sim.wait_for(lambda: command.get_subscription_count() > 0, 10.0,
                  'sim_node to subscribe valve_command')
 

@@ -7,7 +7,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
 from pam_common.diagnostics import status_values
 from pam_common.stamps import ns_stamp
-from pam_common.testing import diagnostic_statuses, wait_until
+from pam_common.testing import diagnostic_statuses, feed_until_answered, wait_until
 from pam_interfaces.msg import JointEstimate, Pressures
 
 BURST = 20000
@@ -39,10 +39,12 @@ def test_a_burst_lost_in_the_queue_is_reported(node_process, probe):
     overflows. What reached the filter plus what /diagnostics reports lost is the whole burst,
     and the status goes WARN."""
     ukf, diagnostics, estimates, pub = start(node_process, probe)
-    pub.publish(pressures(1, 100.0))        # sample 1 surely in: the count starts there
-    ukf.wait_for(lambda: len(estimates) >= 1, 30.0, 'the estimate of sample 1')
+    # samples 1, 2, ... one at a time until an estimate came back (each side of a match is
+    # discovered on its own): the count starts at sample 1 and goes on with the burst
+    fed = feed_until_answered(lambda k: pub.publish(pressures(k + 1, 100.0 + k * 1e-3)),
+                              [estimates], timeout=30.0)
     since = time.monotonic()
-    for k in range(2, BURST + 1):
+    for k in range(fed + 1, BURST + 1):
         pub.publish(pressures(k, 100.0 + (k - 1) * 1e-3))
 
     def settled():
