@@ -16,15 +16,16 @@ def test_each_model_is_timed_and_the_three_paced_at_1_khz():
     cost = measure_model_cost('realistic', None, samples=50, paced=200)
     took = time.monotonic() - start
     assert (cost.scenario, cost.model) == ('realistic', 'nominal')
-    figures = (cost.sim, cost.ukf, cost.pi, cost.paced)
+    figures = (cost.sim, cost.ukf, cost.pi, cost.paced, cost.wake_up)
     assert all(math.isfinite(v) and v > 0.0 for v in figures), cost
     assert cost.back_to_back == cost.sim + cost.ukf + cost.pi
-    assert took >= 0.199            # 200 deadlines 1 ms apart: the pacing is real
-    assert cost.paced < 1e-3        # CPU per sample, not the period
+    assert took >= 0.399            # twice 200 deadlines 1 ms apart: the pacing is real
+    assert cost.paced < 1e-3 and cost.wake_up < 1e-3    # CPU per sample, not the period
     assert cost.as_dict()['back_to_back'] == cost.back_to_back
     line = cost.line()
     assert line.startswith("the models' compute per sample (the 'realistic' rig, the nominal "
-                           'UKF, PI): ') and line.endswith(' us paced at 1 kHz'), line
+                           'UKF, PI): ') and ' us paced at 1 kHz (of which ' in line, line
+    assert line.endswith(' us a 1 kHz wake-up costs with nothing done)'), line
 
 
 def test_the_scenario_defaults_to_the_stacks():
