@@ -19,9 +19,11 @@ def test_each_model_is_timed_and_the_three_paced_at_1_khz():
     figures = (cost.sim, cost.ukf, cost.pi, cost.paced, cost.wake_up)
     assert all(math.isfinite(v) and v > 0.0 for v in figures), cost
     assert cost.back_to_back == cost.sim + cost.ukf + cost.pi
+    assert cost.with_wake_up == cost.back_to_back + cost.wake_up
     assert took >= 0.399            # twice 200 deadlines 1 ms apart: the pacing is real
     assert cost.paced < 1e-3 and cost.wake_up < 1e-3    # CPU per sample, not the period
     assert cost.as_dict()['back_to_back'] == cost.back_to_back
+    assert cost.as_dict()['with_wake_up'] == cost.with_wake_up
     line = cost.line()
     assert line.startswith("the models' compute per sample (the 'realistic' rig, the nominal "
                            'UKF, PI): ') and ' us paced at 1 kHz (of which ' in line, line
