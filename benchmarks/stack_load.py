@@ -28,8 +28,8 @@ ROS domain of their own. After --warmup s the rigs' latency statistics are reset
             no stack of such a loop gets under; the wake-up alone is printed too): the ratios
             are the stack's overhead, machine-independent enough to compare across machines
             (the absolute CPU is not: 23 % on one machine of a kind, 81 % on another). The
-            first is over the models back to back plus one wake-up of the paced loop (16-20 us
-            here, the same in C: benchmarks/wake_up.c), the least a 1 kHz loop of the models
+            first is over the models back to back with one wake-up (of a bare sleep loop: 16-20
+            us here, the same in C: benchmarks/wake_up.c), the least a 1 kHz loop of the models
             needs per sample; the second, over the models back to back alone, also counts the
             machine's wake-up as overhead; the third, over the models paced, compares like with
             like but its baseline moves 2-3 x from run to run on a shared VM;

@@ -76,7 +76,7 @@ DEFAULT_DURATION = 64.0      # s: the reference profile's 8 steps of 8 s
 DEFAULT_SCENARIO = 'realistic'
 DEMO_DOMAINS = (110, 199)    # the random ROS_DOMAIN_ID's range (inclusive)
 LOG_TAIL_LINES = 30          # of a stack's log, when it stopped early
-MODEL_COST_DEADLINES = 2000  # 1 ms deadlines of the models' paced timing (2 s)
+MODEL_COST_DEADLINES = 2000  # 1 ms deadlines of each paced timing (bare loop, models: 4 s)
 BRINGUP_SIGTERM_AFTER = 20.0   # s after our SIGINT: more than pam-bringup's own stop (<= 16 s)
 BRINGUP_STOP_TIMEOUT = 30.0    # s after our SIGINT: SIGKILL
 #: the executables of each step, by package

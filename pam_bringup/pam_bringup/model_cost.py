@@ -12,8 +12,9 @@ Measured: the simulated rig's step and sample (the scenario's plant and effects)
 (bringup.yaml's angle gains); each back to back after a warm-up, then the three together once per
 1 ms deadline (sleeping to each, as sim_node's sampler does): a loop that wakes a thousand times
 a second pays its wake-ups and finds its caches cold, a floor no 1 kHz stack of these models
-gets under. The wake-up alone is timed too, by the same paced loop doing nothing: on the 2-core
-development VM it is 16-19 us of CPU per wake-up, the same for the loop written in C
+gets under. The wake-up alone is timed too, by a bare sleep loop (the same paced loop doing
+nothing): on the 2-core development VM it is 16-20 us of CPU per wake-up, the same for the loop
+written in C
 (benchmarks/wake_up.c): the hypervisor's timer, not Python, and most of the difference between
 the paced and the back-to-back figures. No ROS here.
 """
@@ -35,8 +36,8 @@ PERIOD = 1e-3           # s, the rig's sample period in the paced timing
 @dataclass(frozen=True)
 class ModelCost:
     """The models' compute per sample (s): back to back, each, and the three paced at 1 kHz
-    (this thread's CPU per sample, the sleep's own cost included); wake_up: the same paced loop
-    doing nothing (CPU per deadline: the sleep and the wake-up alone)."""
+    (this thread's CPU per sample, the sleep's own cost included); wake_up: a bare sleep loop
+    paced the same way (CPU per deadline, s: the sleep and the wake-up alone)."""
 
     sim: float
     ukf: float
@@ -52,7 +53,7 @@ class ModelCost:
 
     @property
     def with_wake_up(self) -> float:
-        """The models back to back plus one 1 kHz wake-up: what a 1 kHz loop of these models
+        """The models back to back with one wake-up (s): what a 1 kHz loop of these models
         needs per sample at the least (their caches warm); steadier than the paced figure,
         which moves 2-3 x from run to run on a shared VM."""
         return self.back_to_back + self.wake_up
@@ -62,7 +63,7 @@ class ModelCost:
                 f'UKF, PI): {self.back_to_back * 1e6:.1f} us back to back (sim step '
                 f'{self.sim * 1e6:.1f} + UKF step {self.ukf * 1e6:.1f} + PI '
                 f'{self.pi * 1e6:.1f}), {self.paced * 1e6:.1f} us paced at 1 kHz (of which '
-                f'{self.wake_up * 1e6:.1f} us a 1 kHz wake-up costs with nothing done)')
+                f'{self.wake_up * 1e6:.1f} us is one wake-up of a bare sleep loop)')
 
     def as_dict(self) -> dict:
         return {**asdict(self), 'back_to_back': self.back_to_back,
@@ -72,7 +73,8 @@ class ModelCost:
 def measure_model_cost(scenario: str | None = None, identified: Path | None = None,
                        samples: int = 3000, paced: int = 3000) -> ModelCost:
     """Time the models (see the module docstring): `samples` steps of each back to back,
-    `paced` deadlines of the three together; scenario None: bringup.yaml's."""
+    `paced` deadlines of the bare sleep loop, then as many of the three together; scenario
+    None: bringup.yaml's."""
     if samples < 1 or paced < 1:
         raise ValueError(f'samples and paced must be >= 1, got {samples!r}, {paced!r}')
     from pam_controller.pi import PiController, PiGains

@@ -27,7 +27,7 @@ def test_each_model_is_timed_and_the_three_paced_at_1_khz():
     line = cost.line()
     assert line.startswith("the models' compute per sample (the 'realistic' rig, the nominal "
                            'UKF, PI): ') and ' us paced at 1 kHz (of which ' in line, line
-    assert line.endswith(' us a 1 kHz wake-up costs with nothing done)'), line
+    assert line.endswith(' us is one wake-up of a bare sleep loop)'), line
 
 
 def test_the_scenario_defaults_to_the_stacks():

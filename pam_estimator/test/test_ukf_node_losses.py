@@ -39,17 +39,23 @@ def test_a_burst_lost_in_the_queue_is_reported(node_process, probe):
     overflows. What reached the filter plus what /diagnostics reports lost is the whole burst,
     and the status goes WARN."""
     ukf, diagnostics, estimates, pub = start(node_process, probe)
-    # samples 1, 2, ... one at a time until an estimate came back (each side of a match is
-    # discovered on its own): the count starts at sample 1 and goes on with the burst
-    fed = feed_until_answered(lambda k: pub.publish(pressures(k + 1, 100.0 + k * 1e-3)),
+    # samples without a counter one at a time until an estimate came back (each side of a
+    # match is discovered on its own, and the probe sees only its side): ukf_node then takes
+    # and answers sample 1 surely, and its count of the burst starts there
+    fed = feed_until_answered(lambda k: pub.publish(pressures(0, 100.0 + k * 1e-3)),
                               [estimates], timeout=30.0)
+    t0 = 100.0 + fed * 1e-3                  # the burst's stamps go on after the fed ones
+    pub.publish(pressures(1, t0))
+    ukf.wait_for(lambda: any(m.sample == 1 for m in estimates.messages()), 30.0,
+                 'the estimate of sample 1')
     since = time.monotonic()
-    for k in range(fed + 1, BURST + 1):
-        pub.publish(pressures(k, 100.0 + (k - 1) * 1e-3))
+    for k in range(2, BURST + 1):
+        pub.publish(pressures(k, t0 + (k - 1) * 1e-3))
 
-    def settled():
+    def settled():      # the burst: estimated (less the fed samples without a counter) + lost
         values = ukf_values(diagnostics)
-        return values and int(values['samples estimated']) + int(values['samples lost']) == BURST
+        return values and (int(values['samples estimated']) - int(values['samples without counter'])
+                           + int(values['samples lost'])) == BURST
 
     ukf.wait_for(settled, 60.0, 'samples estimated + samples lost == the burst; last: '
                  f'{ukf_values(diagnostics)}')
