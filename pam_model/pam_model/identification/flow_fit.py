@@ -106,7 +106,12 @@ class PressureModel:
 def fit_flow(records, prior, valve_map, dead_volume: bool = False):
     """The fit, the Parameters changes and what could not be fitted (NotIdentifiable list);
     dead_volume: also fit V_d (eq. (4) with V + V_d), returned fourth (m^3, 0 when not
-    significant: V_d <= SIGNIFICANCE sigma)."""
+    significant: V_d <= SIGNIFICANCE sigma).
+
+    When k2 alone is too uncertain (its volume term is the small part of the transients, and a
+    supply or valve of another form than eq. (4)-(5) biases it first), the areas are fitted
+    again with k2 held at its prior: they shape every transient and stay identifiable, so a
+    weak k2 does not cost the areas too; k2 is then reported not identified."""
     if not records:
         raise NotIdentifiable('the valve areas need calibration runs with pressure transients',
                               (*AREA_NAMES, 'k2'))
@@ -117,10 +122,25 @@ def fit_flow(records, prior, valve_map, dead_volume: bool = False):
             f'k2 needs a free-joint run in which the joint moves (>= '
             f'{math.degrees(MIN_TRAVEL):.0f} deg of travel): the volume-change term of eq. (4)',
             ('k2',)))
-    fit_k2 = bool(moving)
     model = PressureModel(records, valve_map, prior)
-    areas0 = np.array([getattr(prior, f) for f in AREA_FIELDS])
+    try:
+        fitted = _fit_flow(model, prior, bool(moving), dead_volume)
+    except NotIdentifiable as gap:
+        if not moving or gap.parameters != ('k2',):
+            raise NotIdentifiable(gap.what, (*AREA_NAMES, 'k2')) from None
+        skipped.append(NotIdentifiable(f'{gap.what}; the areas were fitted with k2 held at '
+                                       f'its prior {prior.k2:g}', ('k2',)))
+        fitted = _fit_flow(model, prior, False, dead_volume)
+    group, changes, V_d = fitted
+    if dead_volume:
+        return group, changes, skipped, V_d
+    return group, changes, skipped
 
+
+def _fit_flow(model, prior, fit_k2: bool, dead_volume: bool):
+    """(GroupFit, Parameters changes, V_d m^3) of the output-error fit of the areas (and k2 when
+    fit_k2, and V_d when dead_volume); NotIdentifiable names the weak estimates."""
+    areas0 = np.array([getattr(prior, f) for f in AREA_FIELDS])
     n_k2 = 5 if fit_k2 else 4
 
     def unpack(z, with_volume=dead_volume):
@@ -152,10 +172,7 @@ def fit_flow(records, prior, valve_map, dead_volume: bool = False):
                  for n, a, s, a0 in zip(AREA_NAMES, areas, z_std[:4], areas0, strict=True)]
     if fit_k2:
         estimates.append(Estimate('k2', float(k2), float(prior.k2 * z_std[4]), prior.k2, '-'))
-    try:
-        check_identified(estimates, 'valve flow')
-    except NotIdentifiable as gap:     # the fit is dropped as a whole: the areas keep their prior
-        raise NotIdentifiable(gap.what, [e.name for e in estimates]) from None
+    check_identified(estimates, 'valve flow')
     if volume_estimate is not None:
         estimates.append(volume_estimate)
     changes = dict(zip(AREA_FIELDS, map(float, areas), strict=True))
@@ -163,12 +180,12 @@ def fit_flow(records, prior, valve_map, dead_volume: bool = False):
         changes['k2'] = float(k2)
     notes = (f'k1 held at {prior.k1:g}: A1, A2 are effective areas for it (only k1 A_0 is '
              'identifiable)',)
+    if not fit_k2:
+        notes += (f'k2 held at its prior {prior.k2:g}',)
     if dead_volume:
         notes += (f'dead volume V_d per muscle in eq. (4) fitted with the areas (it separates '
                   f'from them as the lock angles change V); kept above {SIGNIFICANCE:g} sigma and '
                   f'{MIN_DEAD_VOLUME * 1e6:g} cm^3',)
     group = GroupFit('flow', tuple(estimates), float(np.sqrt(np.mean(sol.fun ** 2))) * 1e3, 'Pa',
                      len(model.measured), notes)
-    if dead_volume:
-        return group, changes, skipped, V_d
-    return group, changes, skipped
+    return group, changes, V_d
