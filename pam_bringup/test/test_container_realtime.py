@@ -9,10 +9,10 @@ pid) ends at SCHED_FIFO 60 on CPU 0, the sampler at SCHED_FIFO 30 on CPU 0 (/pro
 node's /diagnostics status reports the shared executor thread as it is, and no knob is refused
 (no 'refused' or 'only partly granted' WARN line).
 
-Other WARN lines are not this test's subject: with the executor at SCHED_FIFO, about one start
-in fifteen on the 2-core development VM had one stall of sim_node's sampler some 3 s after the
-start (seen: 182 ms, 172 samples missed), and pi_node's feedback watchdog sent safe_command for
-a few ms (docs/realtime.md, "What you see").
+Other WARN lines are not this test's subject: with the executor at SCHED_FIFO, 3 starts in 100
+on the 2-core development VM had one stall of sim_node's sampler some 3 s after the start (seen:
+182 ms, 172 samples missed), and pi_node's feedback watchdog sent safe_command for a few ms
+(docs/realtime.md, "What you see").
 """
 
 from __future__ import annotations
