@@ -119,11 +119,12 @@ def test_a_stalled_rig_never_pauses_its_plant_and_reports_the_stall(sim_node, pr
     gaps = [b.sample - a.sample - 1 for a, b in itertools.pairwise(msgs) if b.sample > a.sample + 1]
     stalled = max(gaps, default=0)          # (a start-up hiccup may have missed a few more)
     assert stalled >= 0.5 * stall * RATE, f'the stall is a gap in the counter: {gaps}'
-    # and the plant did not pause: its samples cover the wall time since the first one
-    first, last = msgs[0], msgs[-1]
-    elapsed = (helpers.stamp_ns(last.header.stamp) - helpers.stamp_ns(first.header.stamp)) * 1e-9
-    wall = time.time() - helpers.stamp_ns(first.header.stamp) * 1e-9
-    assert abs(elapsed - wall) < 0.2, f'plant time {elapsed:.3f} s, wall {wall:.3f} s'
+    # and the plant did not pause: the latest sample's stamp (its deadline) comes back to within
+    # 0.2 s of the wall clock (a plant that paused would stay behind by the stall; the probe
+    # itself may receive a stretch late on a loaded machine, so it is waited for, bounded)
+    def lag() -> float:
+        return time.time() - helpers.stamp_ns(got.messages()[-1].header.stamp) * 1e-9
+    sim.wait_for(lambda: lag() < 0.2, 5.0, 'the plant time within 0.2 s of the wall clock')
     sim.wait_for(lambda: len(helpers.diagnostic_statuses(diagnostics)) >= 1, 10.0, 'diagnostics')
     time.sleep(1.2)
     values = {kv.key: kv.value for kv in helpers.diagnostic_statuses(diagnostics)[-1].values}
